@@ -1,0 +1,441 @@
+//! [`Sender`] and [`Receiver`]: one publish-subscribe port plus its paired event port.
+//!
+//! iceoryx2 subscribers cannot be waited on, so every ghnet service is a *pair*: a
+//! publish-subscribe service carrying the data and an event service of the same name
+//! whose notifications wake sleepers. A [`Sender`] writes a sample straight into
+//! shared memory (`loan_uninit` → `write_payload` → `send`) and then notifies; a
+//! [`Receiver`] sleeps on its `Listener` and never busy-polls.
+//!
+//! The four aliases name the four roles: [`VelocityPublisher`] (a GNSS source),
+//! [`VelocitySubscriber`] and [`HeadingPublisher`] (the daemon),
+//! [`HeadingSubscriber`] (a consumer).
+//!
+//! Ports of `ipc::Service` are `!Send` (iceoryx2 keeps an `Rc` inside): create a
+//! Sender/Receiver on the thread that uses it.
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
+use iceoryx2::port::notifier::{Notifier, NotifierNotifyError};
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::{LoanError, ReceiveError};
+use iceoryx2::prelude::*;
+
+use crate::names::{validate_source_name, IpcConfig, NameError};
+use crate::settings::{
+    open_event, open_pubsub, EventFactory, Message, PubSubFactory, SERVICE_SETTINGS,
+};
+use crate::{HeadingEstimate, VelocitySample};
+
+type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// A GNSS source's side of `<prefix>/<source>/velocity`.
+///
+/// ```
+/// use ghnet_client::{VelocityPublisher, VelocitySample, VelocitySubscriber};
+/// # let ns = ghnet_client::testing::TestNamespace::new("doc");
+/// # let ipc = ns.ipc();
+/// // `ipc` is usually `IpcConfig::default()`; the doc test uses a private namespace.
+/// let publisher = VelocityPublisher::new(&ipc, "gnss0")?;
+/// // The daemon's side, here only to show the sample arriving.
+/// let subscriber = VelocitySubscriber::new(&ipc, "gnss0")?;
+/// assert_eq!(publisher.subscriber_count(), 1);
+///
+/// publisher.send(VelocitySample::new(1_700_000_000_000_000_000, 0, 3.0, 4.0, 0.0))?;
+///
+/// let got = subscriber.recv_timeout(std::time::Duration::from_secs(1))?.unwrap();
+/// assert_eq!((got.seq, got.v_east), (0, 4.0));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub type VelocityPublisher = Sender<VelocitySample>;
+
+/// The daemon's side of `<prefix>/<source>/velocity`; also handy for recorders.
+pub type VelocitySubscriber = Receiver<VelocitySample>;
+
+/// The daemon's side of `<prefix>/<source>/heading`; tests use it to fake a daemon.
+pub type HeadingPublisher = Sender<HeadingEstimate>;
+
+/// A consumer's side of `<prefix>/<source>/heading`: one [`HeadingEstimate`] per
+/// velocity sample the daemon processed.
+///
+/// ```
+/// use std::time::Duration;
+/// use ghnet_client::{HeadingEstimate, HeadingPublisher, HeadingStatus, HeadingSubscriber};
+/// # let ns = ghnet_client::testing::TestNamespace::new("doc");
+/// # let ipc = ns.ipc();
+/// let headings = HeadingSubscriber::new(&ipc, "gnss0")?;
+/// assert!(headings.try_recv()?.is_none()); // nothing yet, returns at once
+///
+/// // Normally ghnetd answers; here we play the daemon.
+/// let daemon = HeadingPublisher::new(&ipc, "gnss0")?;
+/// let mut answer = HeadingEstimate::from_le_bytes(&[0; HeadingEstimate::SIZE]);
+/// answer.seq = 7;
+/// answer.heading_deg = 36.87;
+/// answer.status = HeadingStatus::Ok.as_u32();
+/// daemon.send(answer)?;
+///
+/// // Sleeps on the event service until the answer is there (or 1 s passes).
+/// let h = headings.recv_timeout(Duration::from_secs(1))?.expect("answer");
+/// assert_eq!(h.seq, 7);
+/// assert_eq!(h.heading_status(), Some(HeadingStatus::Ok));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub type HeadingSubscriber = Receiver<HeadingEstimate>;
+
+/// Opening a [`Sender`] or [`Receiver`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum OpenError {
+    /// The source name or prefix breaks the naming rules.
+    #[error(transparent)]
+    Name(#[from] NameError),
+    /// iceoryx2 could not create a node (permissions on the root path, `/dev/shm`).
+    #[error("cannot create iceoryx2 node")]
+    Node(#[source] iceoryx2::node::NodeCreationFailure),
+    /// The service exists with incompatible settings or type (another iceoryx2
+    /// version, another payload type, smaller limits), or could not be created.
+    #[error("cannot open or create {pattern} service `{service}`")]
+    Service {
+        /// Full service name.
+        service: String,
+        /// `publish-subscribe` or `event`.
+        pattern: &'static str,
+        /// The iceoryx2 error.
+        #[source]
+        source: BoxError,
+    },
+    /// The service is full (all publisher/subscriber/listener slots taken) or out of
+    /// memory.
+    #[error("cannot create {port} on service `{service}`")]
+    Port {
+        /// Full service name.
+        service: String,
+        /// `publisher`, `subscriber`, `notifier` or `listener`.
+        port: &'static str,
+        /// The iceoryx2 error.
+        #[source]
+        source: BoxError,
+    },
+}
+
+/// Sending failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SendError {
+    /// No free sample in the publisher's data segment.
+    #[error("cannot loan a sample")]
+    Loan(#[source] LoanError),
+    /// Delivering the sample to the subscribers failed.
+    #[error("cannot deliver the sample")]
+    Send(#[source] iceoryx2::port::SendError),
+    /// The sample was delivered but the wake-up notification failed.
+    #[error("cannot notify listeners")]
+    Notify(#[source] NotifierNotifyError),
+}
+
+/// Receiving failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecvError {
+    /// Reading from the publishers' data segments failed.
+    #[error("cannot receive a sample")]
+    Receive(#[source] ReceiveError),
+    /// Waiting on the event service failed.
+    #[error("cannot wait for a notification")]
+    Wait(#[source] ListenerWaitError),
+    /// A signal (e.g. Ctrl-C) interrupted the wait; the caller decides whether to
+    /// retry or stop.
+    #[error("interrupted by a signal")]
+    Interrupted,
+}
+
+impl From<ListenerWaitError> for RecvError {
+    fn from(e: ListenerWaitError) -> Self {
+        match e {
+            ListenerWaitError::InterruptSignal => RecvError::Interrupted,
+            e => RecvError::Wait(e),
+        }
+    }
+}
+
+fn service_name_for<T: Message>(ipc: &IpcConfig, source: &str) -> Result<String, NameError> {
+    validate_source_name(source)?;
+    Ok(format!("{}/{}/{}", ipc.prefix(), source, T::SERVICE_SUFFIX))
+}
+
+fn create_node(ipc: &IpcConfig, role: &str) -> Result<Node<ipc::Service>, OpenError> {
+    // Node names are for `iox2 node list`; a failure to build one is not worth an error.
+    let mut builder = NodeBuilder::new().config(&ipc.iceoryx2_config());
+    if let Ok(name) = NodeName::new(&format!("ghnet-{role}")) {
+        builder = builder.name(&name);
+    }
+    builder.create::<ipc::Service>().map_err(OpenError::Node)
+}
+
+/// The service pair both endpoint kinds hold; the factories keep the services alive
+/// for as long as this process uses them.
+struct Pair<T: Message> {
+    name: String,
+    pubsub: PubSubFactory<T>,
+    event: EventFactory,
+}
+
+impl<T: Message> Pair<T> {
+    fn open(node: &Node<ipc::Service>, ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
+        let name = service_name_for::<T>(ipc, source)?;
+        // Names passing our validation always fit iceoryx2's rules (tested in names.rs).
+        let service_name = ServiceName::new(&name).map_err(|e| OpenError::Service {
+            service: name.clone(),
+            pattern: "publish-subscribe",
+            source: Box::new(e),
+        })?;
+        let pubsub = open_pubsub::<T>(node, &service_name).map_err(|e| OpenError::Service {
+            service: name.clone(),
+            pattern: "publish-subscribe",
+            source: Box::new(e),
+        })?;
+        let event = open_event(node, &service_name).map_err(|e| OpenError::Service {
+            service: name.clone(),
+            pattern: "event",
+            source: Box::new(e),
+        })?;
+        Ok(Self {
+            name,
+            pubsub,
+            event,
+        })
+    }
+
+    fn port_error<E: std::error::Error + Send + Sync + 'static>(
+        &self,
+        port: &'static str,
+    ) -> impl FnOnce(E) -> OpenError + '_ {
+        move |e| OpenError::Port {
+            service: self.name.clone(),
+            port,
+            source: Box::new(e),
+        }
+    }
+}
+
+/// Publishing end of a ghnet service pair; see [`VelocityPublisher`] and
+/// [`HeadingPublisher`].
+pub struct Sender<T: Message> {
+    // Field order is drop order: ports before the services before the node.
+    publisher: Publisher<ipc::Service, T, ()>,
+    notifier: Notifier<ipc::Service>,
+    pair: Pair<T>,
+    _node: Option<Node<ipc::Service>>,
+}
+
+impl<T: Message> Sender<T> {
+    /// Creates its own iceoryx2 node, opens or creates the service pair for `source`
+    /// (order against the other side does not matter) and creates a publisher and a
+    /// notifier on it.
+    pub fn new(ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
+        validate_source_name(source)?;
+        let node = create_node(ipc, &format!("{}-pub", T::SERVICE_SUFFIX))?;
+        let mut this = Self::build(&node, ipc, source)?;
+        this._node = Some(node);
+        Ok(this)
+    }
+
+    /// Like [`new`](Self::new) on an existing node, for processes that serve many
+    /// sources from one node (the daemon). `node` must have been created with
+    /// `ipc.iceoryx2_config()`.
+    pub fn with_node(
+        node: &Node<ipc::Service>,
+        ipc: &IpcConfig,
+        source: &str,
+    ) -> Result<Self, OpenError> {
+        Self::build(node, ipc, source)
+    }
+
+    fn build(node: &Node<ipc::Service>, ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
+        let pair = Pair::<T>::open(node, ipc, source)?;
+        let publisher = pair
+            .pubsub
+            .publisher_builder()
+            .create()
+            .map_err(pair.port_error("publisher"))?;
+        let notifier = pair
+            .event
+            .notifier_builder()
+            .create()
+            .map_err(pair.port_error("notifier"))?;
+        Ok(Self {
+            publisher,
+            notifier,
+            pair,
+            _node: None,
+        })
+    }
+
+    /// Writes `value` into shared memory, delivers it and wakes the listeners: the
+    /// normal way to publish one message.
+    pub fn send(&self, value: T) -> Result<(), SendError> {
+        self.publish(value)?;
+        self.notify()
+    }
+
+    /// Delivers `value` without waking anyone. For batches: `publish` each message,
+    /// then [`notify`](Self::notify) once; the receiver drains everything per wake-up.
+    pub fn publish(&self, value: T) -> Result<(), SendError> {
+        let sample = self.publisher.loan_uninit().map_err(SendError::Loan)?;
+        sample
+            .write_payload(value)
+            .send()
+            .map_err(SendError::Send)?;
+        Ok(())
+    }
+
+    /// Wakes every listener of the paired event service.
+    pub fn notify(&self) -> Result<(), SendError> {
+        self.notifier.notify().map_err(SendError::Notify)?;
+        Ok(())
+    }
+
+    /// Subscribers currently connected to the service (including ones of dead
+    /// processes not yet cleaned up). Lets a publisher wait for the daemon before its
+    /// first sample, since the services keep no history.
+    pub fn subscriber_count(&self) -> usize {
+        use iceoryx2::service::port_factory::PortFactory;
+        self.pair.pubsub.dynamic_config().number_of_subscribers()
+    }
+
+    /// The full service name, e.g. `ghnet/gnss0/velocity`.
+    pub fn service_name(&self) -> &str {
+        &self.pair.name
+    }
+}
+
+/// Receiving end of a ghnet service pair; see [`HeadingSubscriber`] and
+/// [`VelocitySubscriber`].
+///
+/// All receive calls return copies (the messages are small `Copy` structs), so no
+/// shared-memory sample is held between calls.
+pub struct Receiver<T: Message> {
+    subscriber: Subscriber<ipc::Service, T, ()>,
+    listener: Listener<ipc::Service>,
+    pair: Pair<T>,
+    _node: Option<Node<ipc::Service>>,
+}
+
+impl<T: Message> Receiver<T> {
+    /// Creates its own iceoryx2 node, opens or creates the service pair for `source`
+    /// and creates a subscriber (buffer
+    /// [`SERVICE_SETTINGS.subscriber_buffer_size`](crate::ServiceSettings::subscriber_buffer_size))
+    /// and a listener on it.
+    pub fn new(ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
+        validate_source_name(source)?;
+        let node = create_node(ipc, &format!("{}-sub", T::SERVICE_SUFFIX))?;
+        let mut this = Self::build(&node, ipc, source)?;
+        this._node = Some(node);
+        Ok(this)
+    }
+
+    /// Like [`new`](Self::new) on an existing node (see [`Sender::with_node`]).
+    pub fn with_node(
+        node: &Node<ipc::Service>,
+        ipc: &IpcConfig,
+        source: &str,
+    ) -> Result<Self, OpenError> {
+        Self::build(node, ipc, source)
+    }
+
+    fn build(node: &Node<ipc::Service>, ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
+        let pair = Pair::<T>::open(node, ipc, source)?;
+        let subscriber = pair
+            .pubsub
+            .subscriber_builder()
+            .buffer_size(SERVICE_SETTINGS.subscriber_buffer_size)
+            .create()
+            .map_err(pair.port_error("subscriber"))?;
+        let listener = pair
+            .event
+            .listener_builder()
+            .create()
+            .map_err(pair.port_error("listener"))?;
+        Ok(Self {
+            subscriber,
+            listener,
+            pair,
+            _node: None,
+        })
+    }
+
+    /// Returns the next message if one is buffered, else `None` at once.
+    ///
+    /// Also consumes pending wake-up notifications when it finds nothing, so a caller
+    /// that only polls does not let them pile up.
+    pub fn try_recv(&self) -> Result<Option<T>, RecvError> {
+        if let Some(v) = self.receive()? {
+            return Ok(Some(v));
+        }
+        self.drain_notifications()?;
+        // A message may have landed between the first look and the drain; its
+        // notification is gone now, so look once more.
+        self.receive()
+    }
+
+    /// Sleeps on the event service until a message is there or `timeout` has passed
+    /// (`Ok(None)`).
+    pub fn recv_timeout(&self, timeout: Duration) -> Result<Option<T>, RecvError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(v) = self.receive()? {
+                return Ok(Some(v));
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(None);
+            }
+            // A notification sent after `receive` above is still pending in the
+            // listener, so this returns at once instead of missing it.
+            self.listener.timed_wait(|_| {}, deadline - now)?;
+        }
+    }
+
+    /// Sleeps on the event service until a message is there.
+    pub fn recv(&self) -> Result<T, RecvError> {
+        loop {
+            if let Some(v) = self.receive()? {
+                return Ok(v);
+            }
+            self.listener.blocking_wait(|_| {})?;
+        }
+    }
+
+    /// The listener of the paired event service, to attach to a `WaitSet` when one
+    /// thread waits on many receivers (the daemon). After each wake-up call
+    /// [`drain_notifications`](Self::drain_notifications) (or the `WaitSet` wakes
+    /// again at once) and then [`try_recv`](Self::try_recv) until `None`.
+    pub fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
+    }
+
+    /// Consumes pending wake-up notifications without waiting.
+    pub fn drain_notifications(&self) -> Result<(), RecvError> {
+        self.listener.try_wait(|_| {})?;
+        Ok(())
+    }
+
+    /// Publishers currently connected to the service (including ones of dead
+    /// processes not yet cleaned up). The daemon drops a discovered source when
+    /// this reaches zero.
+    pub fn publisher_count(&self) -> usize {
+        use iceoryx2::service::port_factory::PortFactory;
+        self.pair.pubsub.dynamic_config().number_of_publishers()
+    }
+
+    /// The full service name, e.g. `ghnet/gnss0/heading`.
+    pub fn service_name(&self) -> &str {
+        &self.pair.name
+    }
+
+    fn receive(&self) -> Result<Option<T>, RecvError> {
+        Ok(self
+            .subscriber
+            .receive()
+            .map_err(RecvError::Receive)?
+            .map(|sample| *sample))
+    }
+}

@@ -1,0 +1,66 @@
+//! `ghnet_client`: the wire of ghnet — message types, service names and the
+//! publish/subscribe helpers that GNSS sources, the `ghnetd` daemon and consumers
+//! share. Nothing here depends on the daemon or the model.
+//!
+//! # Layout
+//!
+//! - [`wire`] — [`VelocitySample`] (in) and [`HeadingEstimate`] (out): `#[repr(C)]`,
+//!   no implicit padding, fixed iceoryx2 type names, a little-endian byte codec for
+//!   transports without shared memory. Field tables for other languages are in
+//!   `client/README.md`; unit tests pin every offset.
+//! - [`names`] — [`IpcConfig`] (service prefix + optional private iceoryx2 config) and
+//!   the naming scheme `<prefix>/<source>/velocity` → `<prefix>/<source>/heading`,
+//!   with source-name validation and the Zenoh key helper.
+//! - [`settings`] — [`SERVICE_SETTINGS`], the one place where service limits and
+//!   buffer sizes are chosen (settings of an existing service are minimums, so every
+//!   party must ask for the same).
+//! - [`endpoint`] — [`Sender`]/[`Receiver`], each a port on a publish-subscribe
+//!   service plus one on the paired event service of the same name, so receivers
+//!   sleep instead of polling. Aliases: [`VelocityPublisher`], [`HeadingSubscriber`]
+//!   (the two a user needs) and [`VelocitySubscriber`], [`HeadingPublisher`] (the
+//!   daemon's side).
+//! - [`testing`] — [`testing::TestNamespace`], a private iceoryx2 namespace per test
+//!   that cleans up after itself.
+//!
+//! # Protocol in one paragraph
+//!
+//! A source opens `<prefix>/<source>/velocity` and sends [`VelocitySample`]s, each
+//! followed by an event notification. `ghnetd` finds the service (statically
+//! configured or discovered), answers every sample with exactly one
+//! [`HeadingEstimate`] on `<prefix>/<source>/heading` (timestamp and sequence number
+//! echoed) and notifies that event service. Everything is `open_or_create` with the
+//! same [`SERVICE_SETTINGS`], so start order does not matter; services keep no
+//! history, so a message sent before the other side is connected is not seen by it.
+//!
+//! All processes must use iceoryx2 **0.10.0** exactly (`VersionMismatch` otherwise).
+//!
+//! ```
+//! use ghnet_client::{VelocityPublisher, VelocitySample};
+//! # let ns = ghnet_client::testing::TestNamespace::new("doc");
+//! # let ipc = ns.ipc();
+//! // In production: let ipc = ghnet_client::IpcConfig::default();
+//! let gnss = VelocityPublisher::new(&ipc, "gnss0")?;
+//! assert_eq!(gnss.service_name(), "ghnet/gnss0/velocity");
+//! gnss.send(VelocitySample::new(1, 0, 1.0, 1.0, 0.0))?;  // no daemon needed to send
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+#![warn(missing_docs)]
+
+pub mod endpoint;
+pub mod names;
+pub mod settings;
+pub mod testing;
+pub mod wire;
+
+pub use endpoint::{
+    HeadingPublisher, HeadingSubscriber, OpenError, Receiver, RecvError, SendError, Sender,
+    VelocityPublisher, VelocitySubscriber,
+};
+pub use names::{validate_source_name, IpcConfig, NameError, DEFAULT_PREFIX};
+pub use settings::{Message, ServiceSettings, SERVICE_SETTINGS};
+pub use wire::{flags, CodecError, HeadingEstimate, HeadingStatus, VelocitySample, MODEL_NAME_LEN};
+
+/// The iceoryx2 crate this wire is built on, re-exported so users (and the daemon)
+/// name exactly the pinned version's types, e.g. `ghnet_client::iceoryx2::config::Config`.
+pub use iceoryx2;

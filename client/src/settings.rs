@@ -1,0 +1,112 @@
+//! The iceoryx2 service settings of every ghnet service, chosen here and only here.
+//!
+//! iceoryx2 fixes a service's limits when the service is *created*; whoever opens it
+//! later may ask for at most those limits (asking for more fails with e.g.
+//! `DoesNotSupportRequestedAmountOfPublishers`). Since either the publisher, the
+//! daemon or a subscriber may be first, all of them create with, and open asking
+//! for, exactly [`SERVICE_SETTINGS`]. Clients in other languages must do the same
+//! (see the table in `client/README.md`), or open without requesting limits.
+
+use std::fmt::Debug;
+
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::{event, publish_subscribe};
+
+/// Limits and buffering of a ghnet service pair (publish-subscribe + event of the same
+/// name). The same values apply to `…/velocity` and `…/heading`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ServiceSettings {
+    /// Publishers per publish-subscribe service. One is normal; the slack covers a
+    /// restarted publisher overlapping with its predecessor before dead-node cleanup,
+    /// plus a diagnostic tool.
+    pub max_publishers: usize,
+    /// Subscribers per publish-subscribe service: the daemon (or the consumer) plus
+    /// monitors, recorders and tests.
+    pub max_subscribers: usize,
+    /// Processes (iceoryx2 nodes) that may have the service open at once.
+    pub max_nodes: usize,
+    /// Samples a subscriber buffers before the oldest is overwritten (safe overflow:
+    /// a slow reader never blocks the publisher; lost samples show up as sequence
+    /// gaps). 128 is over a second of data at 100 Hz, enough to ride out a stalled
+    /// daemon or consumer, and costs only a few hundred KiB of shared memory.
+    pub subscriber_buffer_size: usize,
+    /// Samples replayed to a late subscriber. Zero: a heading for a sample that
+    /// predates the subscriber is stale, and the daemon must not answer old
+    /// velocities again after a restart. A publisher that needs its first sample
+    /// answered waits for [`subscriber_count`](crate::Sender::subscriber_count) > 0.
+    pub history_size: usize,
+    /// Notifiers per event service (one per publisher).
+    pub max_notifiers: usize,
+    /// Listeners per event service (one per subscriber that sleeps).
+    pub max_listeners: usize,
+}
+
+/// The settings of every ghnet service. Changing them changes the wire contract for
+/// services that already exist (opening asks for these minimums).
+pub const SERVICE_SETTINGS: ServiceSettings = ServiceSettings {
+    max_publishers: 4,
+    max_subscribers: 8,
+    max_nodes: 16,
+    subscriber_buffer_size: 128,
+    history_size: 0,
+    max_notifiers: 4,
+    max_listeners: 8,
+};
+
+/// A payload type that travels on a ghnet service. Sealed: only the wire types of
+/// this crate.
+pub trait Message: Debug + Copy + ZeroCopySend + sealed::Sealed + 'static {
+    /// Last level of the service name, `velocity` or `heading`.
+    const SERVICE_SUFFIX: &'static str;
+}
+
+impl Message for crate::VelocitySample {
+    const SERVICE_SUFFIX: &'static str = crate::names::VELOCITY_SUFFIX;
+}
+impl Message for crate::HeadingEstimate {
+    const SERVICE_SUFFIX: &'static str = crate::names::HEADING_SUFFIX;
+}
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for crate::VelocitySample {}
+    impl Sealed for crate::HeadingEstimate {}
+}
+
+pub(crate) type PubSubFactory<T> = publish_subscribe::PortFactory<ipc::Service, T, ()>;
+pub(crate) type EventFactory = event::PortFactory<ipc::Service>;
+
+/// Opens or creates the publish-subscribe service `name` with [`SERVICE_SETTINGS`].
+pub(crate) fn open_pubsub<T: Message>(
+    node: &Node<ipc::Service>,
+    name: &ServiceName,
+) -> Result<
+    PubSubFactory<T>,
+    iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError,
+> {
+    let s = SERVICE_SETTINGS;
+    node.service_builder(name)
+        .publish_subscribe::<T>()
+        .max_publishers(s.max_publishers)
+        .max_subscribers(s.max_subscribers)
+        .max_nodes(s.max_nodes)
+        .subscriber_max_buffer_size(s.subscriber_buffer_size)
+        .history_size(s.history_size)
+        .enable_safe_overflow(true)
+        .open_or_create()
+}
+
+/// Opens or creates the event service `name` (paired with the publish-subscribe
+/// service of the same name) with [`SERVICE_SETTINGS`].
+pub(crate) fn open_event(
+    node: &Node<ipc::Service>,
+    name: &ServiceName,
+) -> Result<EventFactory, iceoryx2::service::builder::event::EventOpenOrCreateError> {
+    let s = SERVICE_SETTINGS;
+    node.service_builder(name)
+        .event()
+        .max_notifiers(s.max_notifiers)
+        .max_listeners(s.max_listeners)
+        .max_nodes(s.max_nodes)
+        .open_or_create()
+}
