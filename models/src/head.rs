@@ -1,0 +1,251 @@
+//! Output heads: how the network's outputs become a heading and its standard deviation,
+//! and the loss that trains them.
+//!
+//! Two heads exist because the two shipped models answer different questions.
+//!
+//! * [`Head::Angle`] is the paper's: one output is the heading itself, scaled to the trained
+//!   range (`ψ = centre + half_range·y₀`). It suits a restricted range such as the paper's
+//!   0–90°, where the prior is informative and the network should pull low-speed estimates
+//!   toward it. It cannot represent the full circle (a single regressed angle has a seam).
+//! * [`Head::Residual`] is for the full circle: two outputs `(c, s)` give a rotation
+//!   `Δ = atan2(s, c)` applied to the model-based heading, `ψ = atan2(v_E, v_N) + Δ`. The
+//!   seam disappears (everything is on the circle) and, more importantly, the identity
+//!   (`Δ = 0`) is easy to represent. Under a uniform heading prior the posterior of ψ is
+//!   symmetric around atan2 (see `NOTES-domain.md`), so no per-epoch estimator can beat atan2
+//!   on a symmetric loss; what a network can add is a calibrated σ and corrections for
+//!   receiver artefacts. A direct `(cos ψ, sin ψ)` head would have to compute `v/|v|` to
+//!   ~0.05° over speeds from 0.1 to 30 m/s to stay within 2% of atan2 at speed, which a
+//!   38k-parameter GELU network does not do.
+//!
+//! Both heads end with one more output, `log σ` (σ in radians), trained with a Gaussian
+//! negative log-likelihood on the *detached* wrapped error, so σ learns the error scale
+//! without pulling on the heading. A scalar `sigma_scale`, fitted after training on the
+//! validation set so that 68.3% of errors fall within 1σ, corrects the residual mis-scale
+//! of a Gaussian fit to heavy-tailed errors.
+//!
+//! Both heading losses are the paper's MAE, on the wrapped error.
+
+use serde::{Deserialize, Serialize};
+
+/// Largest reported standard deviation: that of a uniform distribution on the circle
+/// (`180°/√3`). A larger σ would claim less than no information.
+pub const MAX_STD_DEG: f32 = 103.923_05;
+
+/// Bounds on the raw `log σ` output (σ in radians), so one bad output can't overflow.
+const LOG_SIGMA_MIN: f32 = -12.0;
+const LOG_SIGMA_MAX: f32 = 3.0;
+
+/// Weight of the penalty that keeps the residual head's `(c, s)` near the unit circle,
+/// where `atan2(s, c)` is well conditioned.
+const NORM_PENALTY: f32 = 0.01;
+
+/// How outputs map to a heading.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Head {
+    /// `ψ = centre_deg + half_range_deg·y₀`, `log σ = y₁` (the paper's single angle).
+    Angle {
+        /// Centre of the trained heading range, degrees.
+        centre_deg: f32,
+        /// Half the width of the trained heading range, degrees.
+        half_range_deg: f32,
+    },
+    /// `ψ = atan2(v_E, v_N) + atan2(y₁, y₀)`, `log σ = y₂`.
+    Residual,
+}
+
+/// Wrap radians to (−π, π].
+#[inline]
+pub fn wrap_rad(x: f32) -> f32 {
+    let y = x.sin().atan2(x.cos());
+    if y <= -std::f32::consts::PI {
+        y + 2.0 * std::f32::consts::PI
+    } else {
+        y
+    }
+}
+
+/// Heading in degrees, clockwise from north, in [0, 360).
+#[inline]
+pub fn heading_deg(v_north: f32, v_east: f32) -> f32 {
+    let h = v_east.atan2(v_north).to_degrees();
+    let h = if h < 0.0 { h + 360.0 } else { h };
+    if h >= 360.0 {
+        0.0
+    } else {
+        h
+    }
+}
+
+impl Head {
+    /// Number of network outputs this head reads.
+    pub fn outputs(&self) -> usize {
+        match self {
+            Head::Angle { .. } => 2,
+            Head::Residual => 3,
+        }
+    }
+
+    /// The heading range the head was trained on, degrees `(lo, hi)`.
+    pub fn range_deg(&self) -> (f32, f32) {
+        match *self {
+            Head::Angle {
+                centre_deg,
+                half_range_deg,
+            } => (centre_deg - half_range_deg, centre_deg + half_range_deg),
+            Head::Residual => (0.0, 360.0),
+        }
+    }
+
+    /// Predicted heading in radians (not wrapped) and raw `log σ`.
+    #[inline]
+    fn raw(&self, y: &[f32], v_north: f32, v_east: f32) -> (f32, f32) {
+        match *self {
+            Head::Angle {
+                centre_deg,
+                half_range_deg,
+            } => ((centre_deg + half_range_deg * y[0]).to_radians(), y[1]),
+            Head::Residual => (v_east.atan2(v_north) + y[1].atan2(y[0]), y[2]),
+        }
+    }
+
+    /// Heading (degrees, [0, 360)) and standard deviation (degrees) from outputs `y`.
+    #[inline]
+    pub fn decode(&self, y: &[f32], v_north: f32, v_east: f32, sigma_scale: f32) -> (f32, f32) {
+        let (psi, log_sigma) = self.raw(y, v_north, v_east);
+        let deg = psi.to_degrees().rem_euclid(360.0);
+        let deg = if deg >= 360.0 { 0.0 } else { deg };
+        let sigma = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX).exp() * sigma_scale;
+        (deg, sigma.to_degrees().min(MAX_STD_DEG))
+    }
+
+    /// Loss for one sample and its gradient with respect to the outputs, written to `dy`.
+    ///
+    /// Returns `(loss, wrapped error in radians, raw σ in radians)`. `sigma_weight` scales the
+    /// likelihood term.
+    pub fn loss(
+        &self,
+        y: &[f32],
+        v_north: f32,
+        v_east: f32,
+        truth_deg: f32,
+        sigma_weight: f32,
+        dy: &mut [f32],
+    ) -> (f32, f32, f32) {
+        let (psi, log_sigma) = self.raw(y, v_north, v_east);
+        let e = wrap_rad(psi - truth_deg.to_radians());
+        let sign = if e > 0.0 {
+            1.0
+        } else if e < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        let mut loss = e.abs();
+        let s = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
+        let inv_var = (-2.0 * s).exp();
+        loss += sigma_weight * (0.5 * e * e * inv_var + s);
+        let ds = if log_sigma == s {
+            sigma_weight * (1.0 - e * e * inv_var)
+        } else {
+            0.0
+        };
+        match *self {
+            Head::Angle { half_range_deg, .. } => {
+                dy[0] = sign * half_range_deg.to_radians();
+                dy[1] = ds;
+            }
+            Head::Residual => {
+                let (c, sn) = (y[0], y[1]);
+                let r2 = (c * c + sn * sn).max(1e-12);
+                let pen = r2 - 1.0;
+                loss += NORM_PENALTY * pen * pen;
+                dy[0] = sign * (-sn / r2) + NORM_PENALTY * 4.0 * pen * c;
+                dy[1] = sign * (c / r2) + NORM_PENALTY * 4.0 * pen * sn;
+                dy[2] = ds;
+            }
+        }
+        (loss, e, s.exp())
+    }
+
+    /// Initial bias of the output layer: the residual head starts at `Δ = 0`
+    /// (`c = 1, s = 0`), both heads at σ ≈ 1 rad.
+    pub fn initial_bias(&self) -> Vec<f32> {
+        match self {
+            Head::Angle { .. } => vec![0.0, 0.0],
+            Head::Residual => vec![1.0, 0.0, 0.0],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_and_heading_conventions() {
+        assert!(
+            (wrap_rad(359f32.to_radians() - 1f32.to_radians()).to_degrees() + 2.0).abs() < 1e-3
+        );
+        assert_eq!(heading_deg(1.0, 0.0), 0.0);
+        assert!((heading_deg(0.0, 1.0) - 90.0).abs() < 1e-5);
+        assert!((heading_deg(-1.0, 0.0) - 180.0).abs() < 1e-5);
+        assert!((heading_deg(0.0, -1.0) - 270.0).abs() < 1e-5);
+        assert!(heading_deg(1.0, -1e-9) < 360.0);
+    }
+
+    #[test]
+    fn decode_angle_and_residual() {
+        let h = Head::Angle {
+            centre_deg: 45.0,
+            half_range_deg: 45.0,
+        };
+        let (deg, std) = h.decode(&[0.5, (0.01f32).ln()], 1.0, 1.0, 1.0);
+        assert!((deg - 67.5).abs() < 1e-4);
+        assert!((std - 0.01f32.to_degrees()).abs() < 1e-4);
+        let r = Head::Residual;
+        // Δ = atan2(1, 1) = 45° on top of atan2 heading 90°.
+        let (deg, _) = r.decode(&[1.0, 1.0, 0.0], 0.0, 2.0, 1.0);
+        assert!((deg - 135.0).abs() < 1e-4);
+        // σ is capped at the uniform-circle value.
+        let (_, std) = r.decode(&[1.0, 0.0, 3.0], 0.0, 2.0, 10.0);
+        assert_eq!(std, MAX_STD_DEG);
+    }
+
+    /// The σ term uses the error as a constant (stop-gradient), which finite differences
+    /// cannot see: heading outputs are checked with the σ term off, the σ output with it on.
+    fn check_loss_grad(head: Head, y: &[f32], vn: f32, ve: f32, truth: f32) {
+        let k_sigma = y.len() - 1;
+        for k in 0..y.len() {
+            let w = if k == k_sigma { 0.3 } else { 0.0 };
+            let mut dy = vec![0.0; y.len()];
+            head.loss(y, vn, ve, truth, w, &mut dy);
+            let h = 1e-3;
+            let mut yp = y.to_vec();
+            let mut ym = y.to_vec();
+            yp[k] += h;
+            ym[k] -= h;
+            let mut tmp = vec![0.0; y.len()];
+            let lp = head.loss(&yp, vn, ve, truth, w, &mut tmp).0 as f64;
+            let lm = head.loss(&ym, vn, ve, truth, w, &mut tmp).0 as f64;
+            let fd = (lp - lm) / (2.0 * h as f64);
+            assert!(
+                (fd - dy[k] as f64).abs() < 2e-3 * (1.0 + fd.abs()),
+                "{head:?} output {k}: analytic {} fd {fd}",
+                dy[k]
+            );
+        }
+    }
+
+    #[test]
+    fn head_loss_gradients_match_finite_differences() {
+        let angle = Head::Angle {
+            centre_deg: 45.0,
+            half_range_deg: 45.0,
+        };
+        check_loss_grad(angle, &[0.3, -1.2], 1.0, 0.5, 20.0);
+        check_loss_grad(angle, &[-0.7, 0.4], 0.1, 0.2, 80.0);
+        check_loss_grad(Head::Residual, &[0.9, 0.2, -0.5], 1.0, 0.5, 10.0);
+        check_loss_grad(Head::Residual, &[1.3, -0.4, 0.7], -1.0, -0.5, 300.0);
+    }
+}

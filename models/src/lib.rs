@@ -1,0 +1,25 @@
+//! GHNet: heading from one GNSS velocity sample, with a small network on faer.
+//!
+//! # Layout
+//! - [`params`]: named tensors in PyTorch `state_dict` order and the architecture (Table I).
+//! - [`gelu`]: the tanh-form GELU the paper uses, vectorisable.
+//! - [`net`]: the inference network, batch norm folded and linear head collapsed.
+//! - [`head`]: how outputs become a heading and σ, and the losses that train them.
+//! - [`weights`]: safetensors files with PyTorch names and ghnet metadata.
+//! - [`model`]: [`Model`] (loaded, shareable) and [`Predictor`] (per thread, no allocation).
+//! - [`train`]: forward/backward of every layer, AdamW, early stopping, σ calibration.
+//!
+//! This crate knows nothing about IPC: the daemon wires it to the transports.
+#![warn(missing_docs)]
+
+pub mod gelu;
+pub mod head;
+pub mod model;
+pub mod net;
+pub mod params;
+pub mod train;
+pub mod weights;
+
+pub use model::{Model, ModelError, Prediction, Predictor, Status, StatusPolicy, DEFAULT_MODEL};
+pub use params::Arch;
+pub use weights::ModelMeta;

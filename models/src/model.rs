@@ -1,0 +1,367 @@
+//! A loaded model and the per-thread predictor that runs it.
+//!
+//! [`Model`] is immutable and shareable (`Arc<Model>`); [`Predictor`] owns the scratch
+//! buffers, so the hot path (`predict`, `predict_batch`) allocates nothing.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use faer::Mat;
+
+use crate::head::{heading_deg, Head};
+use crate::net::{Network, Scratch};
+use crate::params::ParamSet;
+use crate::train::scale_input;
+use crate::weights::{self, ModelMeta, WeightsError};
+
+/// The models compiled into every binary, by name. `ghnet-full` is the default.
+pub const BUILTIN: [(&str, &[u8]); 2] = [
+    (
+        "ghnet-full",
+        include_bytes!("../ghnet-full.safetensors").as_slice(),
+    ),
+    (
+        "paper-s1",
+        include_bytes!("../paper-s1.safetensors").as_slice(),
+    ),
+];
+
+/// Name of the default model.
+pub const DEFAULT_MODEL: &str = "ghnet-full";
+
+/// Why a model could not be had.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    /// The name is neither built in nor an existing file.
+    #[error("unknown model `{0}`: not a built-in model (ghnet-full, paper-s1) and no such file")]
+    Unknown(String),
+    /// The file or embedded bytes are malformed.
+    #[error("model `{name}`: {source}")]
+    Weights {
+        /// Name or path.
+        name: String,
+        /// What is wrong.
+        #[source]
+        source: WeightsError,
+    },
+}
+
+/// A loaded model: folded network, head, metadata and the unfolded weights it came from.
+#[derive(Debug, Clone)]
+pub struct Model {
+    meta: ModelMeta,
+    params: ParamSet,
+    net: Network,
+    id: u32,
+}
+
+impl Model {
+    /// Build from weights and metadata (folding batch norm once, here).
+    pub fn new(params: ParamSet, meta: ModelMeta) -> Self {
+        let net = Network::fold(&params);
+        let mut h: u32 = 0x811c_9dc5; // FNV-1a over name and weights: a stable wire id
+        for b in meta
+            .name
+            .bytes()
+            .chain(params.data().iter().flat_map(|v| v.to_le_bytes()))
+        {
+            h ^= b as u32;
+            h = h.wrapping_mul(0x0100_0193);
+        }
+        Self {
+            meta,
+            params,
+            net,
+            id: h,
+        }
+    }
+
+    /// A built-in model by name.
+    pub fn builtin(name: &str) -> Result<Self, ModelError> {
+        let bytes = BUILTIN
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, b)| *b)
+            .ok_or_else(|| ModelError::Unknown(name.into()))?;
+        Self::from_bytes(name, bytes)
+    }
+
+    /// Parse safetensors bytes; `name` is only used in errors.
+    pub fn from_bytes(name: &str, bytes: &[u8]) -> Result<Self, ModelError> {
+        let (params, meta) = weights::from_bytes(bytes).map_err(|source| ModelError::Weights {
+            name: name.into(),
+            source,
+        })?;
+        Ok(Self::new(params, meta))
+    }
+
+    /// Load a safetensors file.
+    pub fn load(path: &Path) -> Result<Self, ModelError> {
+        let (params, meta) = weights::read(path).map_err(|source| ModelError::Weights {
+            name: path.display().to_string(),
+            source,
+        })?;
+        Ok(Self::new(params, meta))
+    }
+
+    /// A built-in name, or else a path to a safetensors file.
+    pub fn from_name_or_path(s: &str) -> Result<Self, ModelError> {
+        if BUILTIN.iter().any(|(n, _)| *n == s) {
+            return Self::builtin(s);
+        }
+        let p = Path::new(s);
+        if p.exists() {
+            Self::load(p)
+        } else {
+            Err(ModelError::Unknown(s.into()))
+        }
+    }
+
+    /// Model name from its metadata.
+    pub fn name(&self) -> &str {
+        &self.meta.name
+    }
+
+    /// A 32-bit FNV-1a hash of name and weights: tells consumers which weights answered.
+    pub fn id(&self) -> u32 {
+        self.id
+    }
+
+    /// Metadata.
+    pub fn meta(&self) -> &ModelMeta {
+        &self.meta
+    }
+
+    /// The unfolded weights (what `ghnet export` writes).
+    pub fn params(&self) -> &ParamSet {
+        &self.params
+    }
+
+    /// The folded network.
+    pub fn network(&self) -> &Network {
+        &self.net
+    }
+
+    /// The output head.
+    pub fn head(&self) -> &Head {
+        &self.meta.head
+    }
+
+    /// Safetensors bytes of this model.
+    pub fn to_safetensors(&self) -> Vec<u8> {
+        weights::to_bytes(&self.params, &self.meta)
+    }
+}
+
+/// How far to trust a heading. Mirrors the wire status in `ghnet-client` (the daemon maps
+/// one to the other; this crate knows nothing of the wire).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// Use it, with its σ.
+    Ok,
+    /// A heading exists but σ exceeds the policy's limit: do not feed it to a filter
+    /// without inflating its variance.
+    LowSpeed,
+    /// Horizontal speed below the stationary threshold: heading is not observable.
+    Stationary,
+    /// The input was not a usable velocity (NaN, infinite, absurd): no heading.
+    Invalid,
+}
+
+impl Status {
+    /// Lower-case name, as written in CSV and logs.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::LowSpeed => "low_speed",
+            Status::Stationary => "stationary",
+            Status::Invalid => "invalid",
+        }
+    }
+}
+
+/// Thresholds that turn a prediction into a [`Status`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StatusPolicy {
+    /// Below this horizontal speed (m/s) the status is `stationary`.
+    pub stationary_speed: f32,
+    /// Above this σ (degrees) the status is `low_speed`.
+    pub max_std_deg: f32,
+    /// Above this speed (m/s) the input is `invalid`: no land vehicle does 100 m/s, a
+    /// receiver glitch does.
+    pub max_speed: f32,
+}
+
+impl Default for StatusPolicy {
+    fn default() -> Self {
+        Self {
+            stationary_speed: 0.05,
+            max_std_deg: 10.0,
+            max_speed: 100.0,
+        }
+    }
+}
+
+/// One heading estimate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prediction {
+    /// Heading, degrees clockwise from north in [0, 360); NaN when invalid.
+    pub heading_deg: f32,
+    /// 1σ of the heading, degrees; NaN when invalid.
+    pub std_deg: f32,
+    /// The model-based heading atan2(v_E, v_N), degrees in [0, 360); NaN when invalid.
+    pub atan2_deg: f32,
+    /// Horizontal speed, m/s (NaN when a component is NaN).
+    pub speed: f32,
+    /// Trust.
+    pub status: Status,
+}
+
+impl Prediction {
+    const INVALID: Prediction = Prediction {
+        heading_deg: f32::NAN,
+        std_deg: f32::NAN,
+        atan2_deg: f32::NAN,
+        speed: f32::NAN,
+        status: Status::Invalid,
+    };
+}
+
+/// Runs a model; owns the scratch so calls allocate nothing. One per thread.
+#[derive(Debug)]
+pub struct Predictor {
+    model: Arc<Model>,
+    policy: StatusPolicy,
+    scratch: Scratch,
+    out: Vec<f32>,
+    xb: Mat<f32>,
+    yb: Mat<f32>,
+}
+
+/// Batch size the predictor's scratch is sized for; larger batches run in chunks.
+const BATCH_CHUNK: usize = 256;
+
+impl Predictor {
+    /// A predictor for `model` with the default [`StatusPolicy`].
+    pub fn new(model: Arc<Model>) -> Self {
+        let net = model.network();
+        Self {
+            scratch: net.scratch(BATCH_CHUNK),
+            out: vec![0.0; net.outputs()],
+            xb: Mat::zeros(2, BATCH_CHUNK),
+            yb: Mat::zeros(net.outputs(), BATCH_CHUNK),
+            policy: StatusPolicy::default(),
+            model,
+        }
+    }
+
+    /// Replace the status thresholds.
+    pub fn with_policy(mut self, policy: StatusPolicy) -> Self {
+        self.policy = policy;
+        self
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Arc<Model> {
+        &self.model
+    }
+
+    /// The thresholds in use.
+    pub fn policy(&self) -> &StatusPolicy {
+        &self.policy
+    }
+
+    #[inline]
+    fn validate(&self, v_north: f32, v_east: f32) -> Option<f32> {
+        let speed = v_north.hypot(v_east);
+        (v_north.is_finite() && v_east.is_finite() && speed <= self.policy.max_speed)
+            .then_some(speed)
+    }
+
+    #[inline]
+    fn finish(&self, y: &[f32], v_north: f32, v_east: f32, speed: f32) -> Prediction {
+        let meta = self.model.meta();
+        let (heading, std) = meta.head.decode(y, v_north, v_east, meta.sigma_scale);
+        let status = if speed < self.policy.stationary_speed {
+            Status::Stationary
+        } else if !(std <= self.policy.max_std_deg) {
+            Status::LowSpeed
+        } else {
+            Status::Ok
+        };
+        Prediction {
+            heading_deg: heading,
+            std_deg: std,
+            atan2_deg: heading_deg(v_north, v_east),
+            speed,
+            status,
+        }
+    }
+
+    /// One sample. Never panics: bad input gives [`Status::Invalid`].
+    pub fn predict(&mut self, v_north: f32, v_east: f32) -> Prediction {
+        let Some(speed) = self.validate(v_north, v_east) else {
+            return Prediction {
+                speed: v_north.hypot(v_east),
+                ..Prediction::INVALID
+            };
+        };
+        let x = scale_input(v_north, v_east, self.model.meta().input_scale_mps);
+        let mut out = std::mem::take(&mut self.out);
+        self.model
+            .network()
+            .forward_one(&x, &mut out, &mut self.scratch);
+        let p = self.finish(&out, v_north, v_east, speed);
+        self.out = out;
+        p
+    }
+
+    /// Many samples through the batch path; `out[i]` answers `(v_north[i], v_east[i])`.
+    /// Invalid inputs are fed to the network as zeros and answered as invalid.
+    pub fn predict_batch(&mut self, v_north: &[f32], v_east: &[f32], out: &mut [Prediction]) {
+        assert!(
+            v_north.len() == v_east.len() && v_east.len() == out.len(),
+            "predict_batch: slices must have equal length"
+        );
+        let scale = self.model.meta().input_scale_mps;
+        let k = self.model.network().outputs();
+        let mut y = [0.0f32; 8];
+        let mut start = 0;
+        while start < out.len() {
+            let len = (out.len() - start).min(BATCH_CHUNK);
+            for j in 0..len {
+                let (vn, ve) = (v_north[start + j], v_east[start + j]);
+                let x = if self.validate(vn, ve).is_some() {
+                    scale_input(vn, ve, scale)
+                } else {
+                    [0.0, 0.0]
+                };
+                self.xb[(0, j)] = x[0];
+                self.xb[(1, j)] = x[1];
+            }
+            self.model.network().forward(
+                self.xb.as_ref().subcols(0, len),
+                self.yb.as_mut().subcols_mut(0, len),
+                &mut self.scratch,
+            );
+            for j in 0..len {
+                let (vn, ve) = (v_north[start + j], v_east[start + j]);
+                out[start + j] = match self.validate(vn, ve) {
+                    Some(speed) => {
+                        for (kk, yk) in y.iter_mut().enumerate().take(k) {
+                            *yk = self.yb[(kk, j)];
+                        }
+                        self.finish(&y[..k], vn, ve, speed)
+                    }
+                    None => Prediction {
+                        speed: vn.hypot(ve),
+                        ..Prediction::INVALID
+                    },
+                };
+            }
+            start += len;
+        }
+    }
+}

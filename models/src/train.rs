@@ -1,0 +1,1137 @@
+//! Training in Rust: forward and backward passes of every layer, AdamW, dropout,
+//! batch-norm running statistics, validation with early stopping, σ calibration.
+//!
+//! Everything is single-threaded (`Par::Seq`) and seeded, so the same data, config and
+//! seed give bit-identical weights on the same machine. Each layer's backward pass is a
+//! free function so the unit tests can check it against finite differences on its own.
+
+use faer::linalg::matmul::matmul;
+use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::gelu::gelu_with_grad;
+use crate::head::Head;
+use crate::net::Network;
+use crate::params::{Arch, ParamSet, Role, BN_EPS};
+
+/// Batch-norm momentum for running statistics, PyTorch's default.
+const BN_MOMENTUM: f32 = 0.1;
+
+/// Hyper-parameters of one training run.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct TrainConfig {
+    /// Maximum number of passes over the training set.
+    pub epochs: usize,
+    /// Mini-batch size.
+    pub batch: usize,
+    /// Peak learning rate (after a one-epoch warm-up, cosine decay to `lr·0.01`).
+    pub lr: f32,
+    /// AdamW decoupled weight decay, applied to weight matrices only.
+    pub weight_decay: f32,
+    /// Dropout probability after the last convolution (the paper's 0.1).
+    pub dropout: f32,
+    /// Weight of the σ likelihood term in the loss.
+    pub sigma_weight: f32,
+    /// Stop when validation MAE has not improved for this many epochs.
+    pub patience: usize,
+    /// Seed for initialisation, shuffling and dropout.
+    pub seed: u64,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            epochs: 200,
+            batch: 256,
+            lr: 2e-3,
+            weight_decay: 1e-4,
+            dropout: 0.1,
+            sigma_weight: 0.1,
+            patience: 30,
+            seed: 1,
+        }
+    }
+}
+
+/// Training or validation samples: raw velocities (m/s) and true headings (degrees).
+#[derive(Debug, Clone, Default)]
+pub struct Dataset {
+    /// North velocity, m/s.
+    pub v_north: Vec<f32>,
+    /// East velocity, m/s.
+    pub v_east: Vec<f32>,
+    /// True heading, degrees clockwise from north.
+    pub heading_deg: Vec<f32>,
+}
+
+impl Dataset {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.v_north.len()
+    }
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.v_north.is_empty()
+    }
+    /// Append one sample.
+    pub fn push(&mut self, v_north: f32, v_east: f32, heading_deg: f32) {
+        self.v_north.push(v_north);
+        self.v_east.push(v_east);
+        self.heading_deg.push(heading_deg);
+    }
+}
+
+/// What one epoch did, for the progress bar and the log.
+#[derive(Debug, Clone, Copy)]
+pub struct EpochReport {
+    /// Epoch number from 1.
+    pub epoch: usize,
+    /// Mean training loss.
+    pub train_loss: f32,
+    /// Validation MAE of the wrapped heading error, degrees.
+    pub val_mae_deg: f32,
+    /// Best validation MAE so far.
+    pub best_val_mae_deg: f32,
+    /// Learning rate used in this epoch.
+    pub lr: f32,
+}
+
+/// The result of training.
+#[derive(Debug, Clone)]
+pub struct Trained {
+    /// Best weights by validation MAE.
+    pub params: ParamSet,
+    /// σ scale fitted on the validation set (68.3% of errors within 1σ).
+    pub sigma_scale: f32,
+    /// Epoch of the best weights.
+    pub best_epoch: usize,
+    /// Best validation MAE, degrees.
+    pub best_val_mae_deg: f32,
+    /// Epochs run.
+    pub epochs_run: usize,
+}
+
+// ---------------------------------------------------------------------------------------
+// Layer kernels. Activations are `channels × batch`, column-major. A weight `[out, in]`
+// is held as its column-major transpose `wt` (`in × out`), as the flat ParamSet stores it.
+
+/// `z = W·x + b` with `wt = Wᵀ`.
+pub fn dense_forward(wt: MatRef<'_, f32>, b: &[f32], x: MatRef<'_, f32>, mut z: MatMut<'_, f32>) {
+    for j in 0..z.ncols() {
+        for (i, bi) in b.iter().enumerate() {
+            z[(i, j)] = *bi;
+        }
+    }
+    matmul(z, Accum::Add, wt.transpose(), x, 1.0f32, Par::Seq);
+}
+
+/// Backward of [`dense_forward`]: writes `∂L/∂Wᵀ` into `gwt`, `∂L/∂b` into `gb`, and
+/// `∂L/∂x` into `dx` when asked.
+pub fn dense_backward(
+    wt: MatRef<'_, f32>,
+    x: MatRef<'_, f32>,
+    dz: MatRef<'_, f32>,
+    gwt: MatMut<'_, f32>,
+    gb: &mut [f32],
+    dx: Option<MatMut<'_, f32>>,
+) {
+    matmul(gwt, Accum::Replace, x, dz.transpose(), 1.0f32, Par::Seq);
+    gb.fill(0.0);
+    for j in 0..dz.ncols() {
+        for (i, g) in gb.iter_mut().enumerate() {
+            *g += dz[(i, j)];
+        }
+    }
+    if let Some(dx) = dx {
+        matmul(dx, Accum::Replace, wt, dz, 1.0f32, Par::Seq);
+    }
+}
+
+/// Batch norm in training mode: normalises each channel (row) over the batch, writes
+/// `x̂` and `y = γ·x̂ + β`, returns per-channel mean and biased variance.
+pub fn bn_forward_train(
+    z: MatRef<'_, f32>,
+    gamma: &[f32],
+    beta: &[f32],
+    mut xhat: MatMut<'_, f32>,
+    mut y: MatMut<'_, f32>,
+    mean: &mut [f32],
+    var: &mut [f32],
+    inv_std: &mut [f32],
+) {
+    let n = z.ncols() as f32;
+    mean.fill(0.0);
+    var.fill(0.0);
+    for j in 0..z.ncols() {
+        for c in 0..z.nrows() {
+            mean[c] += z[(c, j)];
+        }
+    }
+    for m in mean.iter_mut() {
+        *m /= n;
+    }
+    for j in 0..z.ncols() {
+        for c in 0..z.nrows() {
+            let d = z[(c, j)] - mean[c];
+            var[c] += d * d;
+        }
+    }
+    for c in 0..z.nrows() {
+        var[c] /= n;
+        inv_std[c] = 1.0 / (var[c] + BN_EPS).sqrt();
+    }
+    for j in 0..z.ncols() {
+        for c in 0..z.nrows() {
+            let xh = (z[(c, j)] - mean[c]) * inv_std[c];
+            xhat[(c, j)] = xh;
+            y[(c, j)] = gamma[c] * xh + beta[c];
+        }
+    }
+}
+
+/// Backward of [`bn_forward_train`]: `∂L/∂z`, `∂L/∂γ`, `∂L/∂β` from `∂L/∂y`.
+pub fn bn_backward_train(
+    dy: MatRef<'_, f32>,
+    xhat: MatRef<'_, f32>,
+    gamma: &[f32],
+    inv_std: &[f32],
+    mut dz: MatMut<'_, f32>,
+    dgamma: &mut [f32],
+    dbeta: &mut [f32],
+) {
+    let n = dy.ncols() as f32;
+    dgamma.fill(0.0);
+    dbeta.fill(0.0);
+    for j in 0..dy.ncols() {
+        for c in 0..dy.nrows() {
+            dgamma[c] += dy[(c, j)] * xhat[(c, j)];
+            dbeta[c] += dy[(c, j)];
+        }
+    }
+    // dxhat = dy·γ; Σdxhat = γ·dβ; Σ(dxhat·x̂) = γ·dγ.
+    for j in 0..dy.ncols() {
+        for c in 0..dy.nrows() {
+            let dxh = dy[(c, j)] * gamma[c];
+            dz[(c, j)] = inv_std[c] / n
+                * (n * dxh - gamma[c] * dbeta[c] - xhat[(c, j)] * gamma[c] * dgamma[c]);
+        }
+    }
+}
+
+/// GELU in place, storing its derivative for the backward pass.
+pub fn gelu_forward(mut a: MatMut<'_, f32>, mut grad: MatMut<'_, f32>) {
+    for j in 0..a.ncols() {
+        for c in 0..a.nrows() {
+            let (y, g) = gelu_with_grad(a[(c, j)]);
+            a[(c, j)] = y;
+            grad[(c, j)] = g;
+        }
+    }
+}
+
+/// Dropout forward with a precomputed mask (0 or `1/(1−p)`): `y = x·mask`, in place.
+/// Its backward is the same multiplication, applied to the gradient.
+pub fn apply_mask(mut x: MatMut<'_, f32>, mask: MatRef<'_, f32>) {
+    for j in 0..x.ncols() {
+        for c in 0..x.nrows() {
+            x[(c, j)] *= mask[(c, j)];
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+
+/// Per-layer buffers of one mini-batch.
+struct ConvCache {
+    z: Mat<f32>,
+    xhat: Mat<f32>,
+    a: Mat<f32>,
+    dgelu: Mat<f32>,
+    mean: Vec<f32>,
+    var: Vec<f32>,
+    inv_std: Vec<f32>,
+}
+
+/// Forward/backward workspace for the unfolded network (training graph).
+pub struct Graph {
+    arch: Arch,
+    batch: usize,
+    x: Mat<f32>,
+    conv: Vec<ConvCache>,
+    mask: Mat<f32>,
+    fc: Vec<Mat<f32>>,
+    // backward scratch
+    da: Vec<Mat<f32>>,
+    dfc: Vec<Mat<f32>>,
+    dz: Mat<f32>,
+}
+
+/// How [`Graph::forward`] treats batch norm and dropout.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// Batch statistics, running-statistics update, dropout active.
+    Train,
+    /// Running statistics, no dropout: the same function the folded network computes.
+    Eval,
+}
+
+impl Graph {
+    /// Buffers for mini-batches of exactly `batch` samples.
+    pub fn new(arch: &Arch, batch: usize) -> Self {
+        let conv = arch
+            .conv
+            .iter()
+            .map(|&c| ConvCache {
+                z: Mat::zeros(c, batch),
+                xhat: Mat::zeros(c, batch),
+                a: Mat::zeros(c, batch),
+                dgelu: Mat::zeros(c, batch),
+                mean: vec![0.0; c],
+                var: vec![0.0; c],
+                inv_std: vec![0.0; c],
+            })
+            .collect();
+        let last = *arch.conv.last().expect("conv layers");
+        let fc: Vec<Mat<f32>> = arch
+            .fc_dims()
+            .iter()
+            .map(|&(_, o)| Mat::zeros(o, batch))
+            .collect();
+        Self {
+            arch: arch.clone(),
+            batch,
+            x: Mat::zeros(arch.input, batch),
+            conv,
+            mask: Mat::from_fn(last, batch, |_, _| 1.0),
+            da: arch.conv.iter().map(|&c| Mat::zeros(c, batch)).collect(),
+            dfc: fc.iter().map(|m| Mat::zeros(m.nrows(), batch)).collect(),
+            fc,
+            dz: Mat::zeros(arch.conv.iter().copied().max().unwrap_or(1), batch),
+        }
+    }
+
+    /// The input buffer (`input × batch`), to be filled with scaled velocities.
+    pub fn input_mut(&mut self) -> MatMut<'_, f32> {
+        self.x.as_mut()
+    }
+
+    /// The network outputs of the last forward pass (`outputs × batch`).
+    pub fn output(&self) -> MatRef<'_, f32> {
+        self.fc.last().expect("fc layers").as_ref()
+    }
+
+    /// Set the dropout mask for the next forward pass (`p = 0` disables it).
+    pub fn sample_dropout(&mut self, p: f32, rng: &mut impl Rng) {
+        let keep = 1.0 / (1.0 - p);
+        for j in 0..self.mask.ncols() {
+            for c in 0..self.mask.nrows() {
+                self.mask[(c, j)] = if p > 0.0 && rng.random::<f32>() < p {
+                    0.0
+                } else if p > 0.0 {
+                    keep
+                } else {
+                    1.0
+                };
+            }
+        }
+    }
+
+    /// Forward pass. In [`Mode::Train`] the running statistics in `params` are updated.
+    pub fn forward(&mut self, params: &mut ParamSet, mode: Mode) {
+        let n_conv = self.arch.conv.len();
+        for l in 0..n_conv {
+            let name = l + 1;
+            let (done, todo) = self.conv.split_at_mut(l);
+            let cache = &mut todo[0];
+            let input = if l == 0 {
+                self.x.as_ref()
+            } else {
+                done[l - 1].a.as_ref()
+            };
+            dense_forward(
+                params.matrix_t(&format!("conv{name}.weight")),
+                params.get(&format!("conv{name}.bias")),
+                input,
+                cache.z.as_mut(),
+            );
+            let gamma = params.get(&format!("bn{name}.weight")).to_vec();
+            let beta = params.get(&format!("bn{name}.bias")).to_vec();
+            match mode {
+                Mode::Train => {
+                    bn_forward_train(
+                        cache.z.as_ref(),
+                        &gamma,
+                        &beta,
+                        cache.xhat.as_mut(),
+                        cache.a.as_mut(),
+                        &mut cache.mean,
+                        &mut cache.var,
+                        &mut cache.inv_std,
+                    );
+                    let n = self.batch as f32;
+                    let unbias = if n > 1.0 { n / (n - 1.0) } else { 1.0 };
+                    let rm = params.get_mut(&format!("bn{name}.running_mean"));
+                    for (r, m) in rm.iter_mut().zip(&cache.mean) {
+                        *r = (1.0 - BN_MOMENTUM) * *r + BN_MOMENTUM * m;
+                    }
+                    let rv = params.get_mut(&format!("bn{name}.running_var"));
+                    for (r, v) in rv.iter_mut().zip(&cache.var) {
+                        *r = (1.0 - BN_MOMENTUM) * *r + BN_MOMENTUM * v * unbias;
+                    }
+                }
+                Mode::Eval => {
+                    let rm = params.get(&format!("bn{name}.running_mean"));
+                    let rv = params.get(&format!("bn{name}.running_var"));
+                    for c in 0..rm.len() {
+                        cache.mean[c] = rm[c];
+                        cache.var[c] = rv[c];
+                        cache.inv_std[c] = 1.0 / (rv[c] + BN_EPS).sqrt();
+                    }
+                    for j in 0..self.batch {
+                        for c in 0..rm.len() {
+                            let xh = (cache.z[(c, j)] - cache.mean[c]) * cache.inv_std[c];
+                            cache.xhat[(c, j)] = xh;
+                            cache.a[(c, j)] = gamma[c] * xh + beta[c];
+                        }
+                    }
+                }
+            }
+            gelu_forward(cache.a.as_mut(), cache.dgelu.as_mut());
+        }
+        if mode == Mode::Train {
+            apply_mask(self.conv[n_conv - 1].a.as_mut(), self.mask.as_ref());
+        }
+        for l in 0..self.fc.len() {
+            let name = l + 1;
+            let (done, todo) = self.fc.split_at_mut(l);
+            let input = if l == 0 {
+                self.conv[n_conv - 1].a.as_ref()
+            } else {
+                done[l - 1].as_ref()
+            };
+            dense_forward(
+                params.matrix_t(&format!("fc{name}.weight")),
+                params.get(&format!("fc{name}.bias")),
+                input,
+                todo[0].as_mut(),
+            );
+        }
+    }
+
+    /// Backward pass of a [`Mode::Train`] forward: `dout` is `∂L/∂outputs`; gradients for
+    /// every tensor go into `grads` (same layout as `params.data()`, buffers left at zero).
+    pub fn backward(&mut self, params: &ParamSet, dout: MatRef<'_, f32>, grads: &mut [f32]) {
+        let n_conv = self.arch.conv.len();
+        let n_fc = self.fc.len();
+        self.dfc[n_fc - 1].as_mut().copy_from(dout);
+        for l in (0..n_fc).rev() {
+            let name = l + 1;
+            let wname = format!("fc{name}.weight");
+            let bname = format!("fc{name}.bias");
+            let wi = params.index_of(&wname).expect("weight");
+            let bi = params.index_of(&bname).expect("bias");
+            let (wr, br) = (params.range(wi), params.range(bi));
+            let shape = &params.specs()[wi].shape;
+            let (fout, fin) = (shape[0], shape[1]);
+            let input = if l == 0 {
+                self.conv[n_conv - 1].a.as_ref()
+            } else {
+                self.fc[l - 1].as_ref()
+            };
+            let (gw, gb) = split_two(grads, wr, br);
+            let (dprev, dcur) = self.dfc.split_at_mut(l);
+            let dx = if l == 0 {
+                self.da[n_conv - 1].as_mut()
+            } else {
+                dprev[l - 1].as_mut()
+            };
+            debug_assert_eq!(dcur[0].nrows(), fout);
+            dense_backward(
+                params.matrix_t(&wname),
+                input,
+                dcur[0].as_ref(),
+                MatMut::from_column_major_slice_mut(gw, fin, fout),
+                gb,
+                Some(dx),
+            );
+        }
+        // dropout
+        apply_mask(self.da[n_conv - 1].as_mut(), self.mask.as_ref());
+        for l in (0..n_conv).rev() {
+            let name = l + 1;
+            let c = self.arch.conv[l];
+            let cache = &self.conv[l];
+            // through GELU
+            let mut dy = self.da[l].as_mut();
+            for j in 0..self.batch {
+                for ch in 0..c {
+                    dy[(ch, j)] *= cache.dgelu[(ch, j)];
+                }
+            }
+            let gi = params.index_of(&format!("bn{name}.weight")).expect("bn");
+            let bi = params.index_of(&format!("bn{name}.bias")).expect("bn");
+            let (gr, br) = (params.range(gi), params.range(bi));
+            let gamma = params.get(&format!("bn{name}.weight"));
+            let mut dz = self.dz.as_mut().submatrix_mut(0, 0, c, self.batch);
+            {
+                let (dg, db) = split_two(grads, gr, br);
+                bn_backward_train(
+                    self.da[l].as_ref(),
+                    cache.xhat.as_ref(),
+                    gamma,
+                    &cache.inv_std,
+                    dz.rb_mut(),
+                    dg,
+                    db,
+                );
+            }
+            let wname = format!("conv{name}.weight");
+            let wi = params.index_of(&wname).expect("w");
+            let bi = params.index_of(&format!("conv{name}.bias")).expect("b");
+            let (wr, br) = (params.range(wi), params.range(bi));
+            let cin = params.specs()[wi].shape[1];
+            let (gw, gb) = split_two(grads, wr, br);
+            let (da_prev, _) = self.da.split_at_mut(l);
+            let input = if l == 0 {
+                self.x.as_ref()
+            } else {
+                self.conv[l - 1].a.as_ref()
+            };
+            let dx = if l == 0 {
+                None
+            } else {
+                Some(da_prev[l - 1].as_mut())
+            };
+            dense_backward(
+                params.matrix_t(&wname),
+                input,
+                dz.rb(),
+                MatMut::from_column_major_slice_mut(gw, cin, c),
+                gb,
+                dx,
+            );
+        }
+    }
+}
+
+/// Two disjoint mutable ranges of one slice.
+fn split_two(
+    v: &mut [f32],
+    a: std::ops::Range<usize>,
+    b: std::ops::Range<usize>,
+) -> (&mut [f32], &mut [f32]) {
+    if a.start < b.start {
+        let (lo, hi) = v.split_at_mut(b.start);
+        (&mut lo[a], &mut hi[..b.len()])
+    } else {
+        let (lo, hi) = v.split_at_mut(a.start);
+        let (x, y) = (&mut hi[..a.len()], &mut lo[b]);
+        (x, y)
+    }
+}
+
+/// AdamW state: first and second moments for every element of the ParamSet.
+pub struct AdamW {
+    m: Vec<f32>,
+    v: Vec<f32>,
+    t: i32,
+    decay_mask: Vec<bool>,
+    train_mask: Vec<bool>,
+    /// Decoupled weight decay.
+    pub weight_decay: f32,
+}
+
+impl AdamW {
+    const B1: f32 = 0.9;
+    const B2: f32 = 0.999;
+    const EPS: f32 = 1e-8;
+
+    /// Optimiser state for `params`: weight decay on weight matrices only, buffers frozen.
+    pub fn new(params: &ParamSet, weight_decay: f32) -> Self {
+        let n = params.data().len();
+        let mut decay_mask = vec![false; n];
+        let mut train_mask = vec![false; n];
+        for (i, s) in params.specs().iter().enumerate() {
+            for k in params.range(i) {
+                decay_mask[k] = s.role == Role::Weight;
+                train_mask[k] = s.role != Role::Buffer;
+            }
+        }
+        Self {
+            m: vec![0.0; n],
+            v: vec![0.0; n],
+            t: 0,
+            decay_mask,
+            train_mask,
+            weight_decay,
+        }
+    }
+
+    /// One step with learning rate `lr`.
+    pub fn step(&mut self, params: &mut [f32], grads: &[f32], lr: f32) {
+        self.t += 1;
+        let bc1 = 1.0 - Self::B1.powi(self.t);
+        let bc2 = 1.0 - Self::B2.powi(self.t);
+        for k in 0..params.len() {
+            if !self.train_mask[k] {
+                continue;
+            }
+            let g = grads[k];
+            if self.decay_mask[k] {
+                params[k] -= lr * self.weight_decay * params[k];
+            }
+            self.m[k] = Self::B1 * self.m[k] + (1.0 - Self::B1) * g;
+            self.v[k] = Self::B2 * self.v[k] + (1.0 - Self::B2) * g * g;
+            let mh = self.m[k] / bc1;
+            let vh = self.v[k] / bc2;
+            params[k] -= lr * mh / (vh.sqrt() + Self::EPS);
+        }
+    }
+}
+
+/// Scale velocities into the network's input.
+#[inline]
+pub fn scale_input(v_north: f32, v_east: f32, input_scale: f32) -> [f32; 2] {
+    [v_north / input_scale, v_east / input_scale]
+}
+
+/// Wrapped errors (radians) and raw σ (radians) of a folded network over a dataset.
+pub fn evaluate(
+    net: &Network,
+    head: &Head,
+    input_scale: f32,
+    data: &Dataset,
+) -> (Vec<f32>, Vec<f32>) {
+    let n = data.len();
+    let chunk = 1024;
+    let mut scratch = net.scratch(chunk);
+    let mut x = Mat::<f32>::zeros(2, chunk);
+    let mut y = Mat::<f32>::zeros(net.outputs(), chunk);
+    let mut errs = Vec::with_capacity(n);
+    let mut sigmas = Vec::with_capacity(n);
+    let mut dy = vec![0.0; net.outputs()];
+    let mut start = 0;
+    while start < n {
+        let len = chunk.min(n - start);
+        for j in 0..len {
+            let s = scale_input(data.v_north[start + j], data.v_east[start + j], input_scale);
+            x[(0, j)] = s[0];
+            x[(1, j)] = s[1];
+        }
+        net.forward(
+            x.as_ref().subcols(0, len),
+            y.as_mut().subcols_mut(0, len),
+            &mut scratch,
+        );
+        for j in 0..len {
+            let out: Vec<f32> = (0..net.outputs()).map(|k| y[(k, j)]).collect();
+            let i = start + j;
+            let (_, e, s) = head.loss(
+                &out,
+                data.v_north[i],
+                data.v_east[i],
+                data.heading_deg[i],
+                0.0,
+                &mut dy,
+            );
+            errs.push(e);
+            sigmas.push(s);
+        }
+        start += len;
+    }
+    (errs, sigmas)
+}
+
+/// Mean absolute value of radians, in degrees.
+fn mae_deg(errs: &[f32]) -> f32 {
+    (errs.iter().map(|e| e.abs() as f64).sum::<f64>() / errs.len().max(1) as f64).to_degrees()
+        as f32
+}
+
+/// The scale `k` such that 68.27% of `|e|/σ` are at most `k`.
+pub fn fit_sigma_scale(errs: &[f32], sigmas: &[f32]) -> f32 {
+    let mut z: Vec<f32> = errs
+        .iter()
+        .zip(sigmas)
+        .map(|(e, s)| e.abs() / s.max(1e-9))
+        .filter(|z| z.is_finite())
+        .collect();
+    if z.is_empty() {
+        return 1.0;
+    }
+    z.sort_by(|a, b| a.total_cmp(b));
+    let k = ((z.len() as f64) * 0.6827).floor() as usize;
+    z[k.min(z.len() - 1)].max(1e-6)
+}
+
+/// Train a network with `head` on `train`, selecting the best epoch on `val`.
+pub fn train(
+    arch: &Arch,
+    head: &Head,
+    input_scale: f32,
+    train: &Dataset,
+    val: &Dataset,
+    cfg: &TrainConfig,
+    mut progress: impl FnMut(&EpochReport),
+) -> Trained {
+    assert_eq!(
+        arch.output,
+        head.outputs(),
+        "architecture output must match head"
+    );
+    assert!(
+        !train.is_empty() && !val.is_empty(),
+        "empty training or validation set"
+    );
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+    let mut params = ParamSet::init(arch, &mut rng);
+    let n_out = arch.fc.len() + 1;
+    params
+        .get_mut(&format!("fc{n_out}.bias"))
+        .copy_from_slice(&head.initial_bias());
+    let mut grads = vec![0.0f32; params.data().len()];
+    let mut opt = AdamW::new(&params, cfg.weight_decay);
+    let batch = cfg.batch.min(train.len()).max(2);
+    let mut graph = Graph::new(arch, batch);
+    let mut dout = Mat::<f32>::zeros(arch.output, batch);
+    let mut order: Vec<usize> = (0..train.len()).collect();
+    let steps_per_epoch = train.len() / batch;
+    let total_steps = (steps_per_epoch * cfg.epochs).max(1);
+    let warmup = steps_per_epoch.max(1);
+    let mut step = 0usize;
+    let mut best = (f32::INFINITY, 0usize, params.clone());
+    let mut epochs_run = 0;
+    let mut yj = vec![0.0f32; arch.output];
+    let mut dyj = vec![0.0f32; arch.output];
+    for epoch in 1..=cfg.epochs {
+        epochs_run = epoch;
+        order.shuffle(&mut rng);
+        let mut loss_sum = 0.0f64;
+        let mut lr = cfg.lr;
+        for b in 0..steps_per_epoch {
+            let idx = &order[b * batch..(b + 1) * batch];
+            {
+                let mut x = graph.input_mut();
+                for (j, &i) in idx.iter().enumerate() {
+                    let s = scale_input(train.v_north[i], train.v_east[i], input_scale);
+                    x[(0, j)] = s[0];
+                    x[(1, j)] = s[1];
+                }
+            }
+            graph.sample_dropout(cfg.dropout, &mut rng);
+            graph.forward(&mut params, Mode::Train);
+            let out = graph.output();
+            for (j, &i) in idx.iter().enumerate() {
+                for k in 0..arch.output {
+                    yj[k] = out[(k, j)];
+                }
+                let (l, _, _) = head.loss(
+                    &yj,
+                    train.v_north[i],
+                    train.v_east[i],
+                    train.heading_deg[i],
+                    cfg.sigma_weight,
+                    &mut dyj,
+                );
+                loss_sum += l as f64;
+                for k in 0..arch.output {
+                    dout[(k, j)] = dyj[k] / batch as f32;
+                }
+            }
+            graph.backward(&params, dout.as_ref(), &mut grads);
+            lr = if step < warmup {
+                cfg.lr * (step + 1) as f32 / warmup as f32
+            } else {
+                let p = (step - warmup) as f32 / (total_steps - warmup).max(1) as f32;
+                cfg.lr * (0.01 + 0.99 * 0.5 * (1.0 + (std::f32::consts::PI * p.min(1.0)).cos()))
+            };
+            opt.step(params.data_mut(), &grads, lr);
+            step += 1;
+        }
+        let net = Network::fold(&params);
+        let (errs, _) = evaluate(&net, head, input_scale, val);
+        let val_mae = mae_deg(&errs);
+        if val_mae < best.0 {
+            best = (val_mae, epoch, params.clone());
+        }
+        progress(&EpochReport {
+            epoch,
+            train_loss: (loss_sum / (steps_per_epoch * batch).max(1) as f64) as f32,
+            val_mae_deg: val_mae,
+            best_val_mae_deg: best.0,
+            lr,
+        });
+        if epoch - best.1 >= cfg.patience {
+            break;
+        }
+    }
+    let (best_mae, best_epoch, params) = best;
+    let net = Network::fold(&params);
+    let (errs, sigmas) = evaluate(&net, head, input_scale, val);
+    Trained {
+        params,
+        sigma_scale: fit_sigma_scale(&errs, &sigmas),
+        best_epoch,
+        best_val_mae_deg: best_mae,
+        epochs_run,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rand_mat(rng: &mut ChaCha8Rng, r: usize, c: usize) -> Mat<f32> {
+        Mat::from_fn(r, c, |_, _| rng.random_range(-1.0f32..1.0))
+    }
+
+    /// `Σ r ⊙ m` in f64, the linear functional the layer checks differentiate.
+    fn dot(r: MatRef<'_, f32>, m: MatRef<'_, f32>) -> f64 {
+        let mut s = 0.0;
+        for j in 0..m.ncols() {
+            for i in 0..m.nrows() {
+                s += r[(i, j)] as f64 * m[(i, j)] as f64;
+            }
+        }
+        s
+    }
+
+    fn assert_close(analytic: f32, fd: f64, what: &str) {
+        assert!(
+            (analytic as f64 - fd).abs() <= 2e-3 * (1.0 + fd.abs()),
+            "{what}: analytic {analytic} vs finite difference {fd}"
+        );
+    }
+
+    const H: f32 = 1e-2;
+
+    #[test]
+    fn dense_backward_matches_finite_differences() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let (cin, cout, n) = (4, 3, 5);
+        let wt = rand_mat(&mut rng, cin, cout);
+        let b: Vec<f32> = (0..cout).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let x = rand_mat(&mut rng, cin, n);
+        let r = rand_mat(&mut rng, cout, n);
+        let loss = |wt: &Mat<f32>, b: &[f32], x: &Mat<f32>| {
+            let mut z = Mat::zeros(cout, n);
+            dense_forward(wt.as_ref(), b, x.as_ref(), z.as_mut());
+            dot(r.as_ref(), z.as_ref())
+        };
+        let mut gwt = Mat::zeros(cin, cout);
+        let mut gb = vec![0.0; cout];
+        let mut dx = Mat::zeros(cin, n);
+        dense_backward(
+            wt.as_ref(),
+            x.as_ref(),
+            r.as_ref(),
+            gwt.as_mut(),
+            &mut gb,
+            Some(dx.as_mut()),
+        );
+        for i in 0..cin {
+            for o in 0..cout {
+                let (mut p, mut m) = (wt.clone(), wt.clone());
+                p[(i, o)] += H;
+                m[(i, o)] -= H;
+                let fd = (loss(&p, &b, &x) - loss(&m, &b, &x)) / (2.0 * H as f64);
+                assert_close(gwt[(i, o)], fd, "dense dW");
+            }
+        }
+        for o in 0..cout {
+            let (mut p, mut m) = (b.clone(), b.clone());
+            p[o] += H;
+            m[o] -= H;
+            let fd = (loss(&wt, &p, &x) - loss(&wt, &m, &x)) / (2.0 * H as f64);
+            assert_close(gb[o], fd, "dense db");
+        }
+        for i in 0..cin {
+            for j in 0..n {
+                let (mut p, mut m) = (x.clone(), x.clone());
+                p[(i, j)] += H;
+                m[(i, j)] -= H;
+                let fd = (loss(&wt, &b, &p) - loss(&wt, &b, &m)) / (2.0 * H as f64);
+                assert_close(dx[(i, j)], fd, "dense dx");
+            }
+        }
+    }
+
+    #[test]
+    fn batchnorm_backward_matches_finite_differences() {
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let (c, n) = (3, 6);
+        let z = rand_mat(&mut rng, c, n);
+        let gamma: Vec<f32> = (0..c).map(|_| rng.random_range(0.5..1.5)).collect();
+        let beta: Vec<f32> = (0..c).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let r = rand_mat(&mut rng, c, n);
+        let fwd = |z: &Mat<f32>, gamma: &[f32], beta: &[f32]| {
+            let mut xhat = Mat::zeros(c, n);
+            let mut y = Mat::zeros(c, n);
+            let (mut m, mut v, mut s) = (vec![0.0; c], vec![0.0; c], vec![0.0; c]);
+            bn_forward_train(
+                z.as_ref(),
+                gamma,
+                beta,
+                xhat.as_mut(),
+                y.as_mut(),
+                &mut m,
+                &mut v,
+                &mut s,
+            );
+            (dot(r.as_ref(), y.as_ref()), xhat, s)
+        };
+        let (_, xhat, inv_std) = fwd(&z, &gamma, &beta);
+        let mut dz = Mat::zeros(c, n);
+        let (mut dg, mut db) = (vec![0.0; c], vec![0.0; c]);
+        bn_backward_train(
+            r.as_ref(),
+            xhat.as_ref(),
+            &gamma,
+            &inv_std,
+            dz.as_mut(),
+            &mut dg,
+            &mut db,
+        );
+        let h = 1e-3f32;
+        for i in 0..c {
+            for j in 0..n {
+                let (mut p, mut m) = (z.clone(), z.clone());
+                p[(i, j)] += h;
+                m[(i, j)] -= h;
+                let fd = (fwd(&p, &gamma, &beta).0 - fwd(&m, &gamma, &beta).0) / (2.0 * h as f64);
+                assert_close(dz[(i, j)], fd, "bn dz");
+            }
+            let (mut p, mut m) = (gamma.clone(), gamma.clone());
+            p[i] += h;
+            m[i] -= h;
+            let fd = (fwd(&z, &p, &beta).0 - fwd(&z, &m, &beta).0) / (2.0 * h as f64);
+            assert_close(dg[i], fd, "bn dgamma");
+            let (mut p, mut m) = (beta.clone(), beta.clone());
+            p[i] += h;
+            m[i] -= h;
+            let fd = (fwd(&z, &gamma, &p).0 - fwd(&z, &gamma, &m).0) / (2.0 * h as f64);
+            assert_close(db[i], fd, "bn dbeta");
+        }
+    }
+
+    #[test]
+    fn gelu_and_dropout_backward_match_finite_differences() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let (c, n) = (3, 4);
+        let a = rand_mat(&mut rng, c, n);
+        let mut mask = Mat::zeros(c, n);
+        for j in 0..n {
+            for i in 0..c {
+                mask[(i, j)] = if rng.random::<f32>() < 0.3 {
+                    0.0
+                } else {
+                    1.0 / 0.7
+                };
+            }
+        }
+        let r = rand_mat(&mut rng, c, n);
+        let f = |a: &Mat<f32>| {
+            let mut y = a.clone();
+            let mut g = Mat::zeros(c, n);
+            gelu_forward(y.as_mut(), g.as_mut());
+            apply_mask(y.as_mut(), mask.as_ref());
+            (dot(r.as_ref(), y.as_ref()), g)
+        };
+        let (_, g) = f(&a);
+        for i in 0..c {
+            for j in 0..n {
+                let analytic = r[(i, j)] * mask[(i, j)] * g[(i, j)];
+                let h = 1e-3f32;
+                let (mut p, mut m) = (a.clone(), a.clone());
+                p[(i, j)] += h;
+                m[(i, j)] -= h;
+                let fd = (f(&p).0 - f(&m).0) / (2.0 * h as f64);
+                assert_close(analytic, fd, "gelu+dropout");
+            }
+        }
+    }
+
+    /// Whole-network check: every parameter's gradient (through all layers, batch norm in
+    /// training mode, dropout with a fixed mask and the residual head's heading loss, plus
+    /// a random linear term so the σ output is exercised too).
+    #[test]
+    fn whole_network_gradient_matches_finite_differences() {
+        let arch = Arch::tiny(3);
+        let head = Head::Residual;
+        let mut rng = ChaCha8Rng::seed_from_u64(10);
+        let params0 = ParamSet::init(&arch, &mut rng);
+        let n = 6;
+        let mut graph = Graph::new(&arch, n);
+        let vn: Vec<f32> = (0..n).map(|_| rng.random_range(-2.0..2.0)).collect();
+        let ve: Vec<f32> = (0..n).map(|_| rng.random_range(-2.0..2.0)).collect();
+        // Truth 60° away from atan2 keeps the wrapped error away from its kinks.
+        let truth: Vec<f32> = (0..n)
+            .map(|i| crate::head::heading_deg(vn[i], ve[i]) + 60.0)
+            .collect();
+        let mut drop_rng = ChaCha8Rng::seed_from_u64(11);
+        graph.sample_dropout(0.2, &mut drop_rng);
+        let r = rand_mat(&mut rng, 3, n);
+        let run = |p: &mut ParamSet, graph: &mut Graph, want_grad: bool| {
+            {
+                let mut x = graph.input_mut();
+                for j in 0..n {
+                    x[(0, j)] = vn[j];
+                    x[(1, j)] = ve[j];
+                }
+            }
+            graph.forward(p, Mode::Train);
+            let out = graph.output().to_owned();
+            let mut dout = Mat::zeros(3, n);
+            let mut total = 0.0f64;
+            let mut dy = [0.0f32; 3];
+            for j in 0..n {
+                let y = [out[(0, j)], out[(1, j)], out[(2, j)]];
+                total += head.loss(&y, vn[j], ve[j], truth[j], 0.0, &mut dy).0 as f64;
+                for k in 0..3 {
+                    total += (r[(k, j)] * y[k]) as f64;
+                    dout[(k, j)] = dy[k] + r[(k, j)];
+                }
+            }
+            let mut grads = vec![0.0; p.data().len()];
+            if want_grad {
+                graph.backward(p, dout.as_ref(), &mut grads);
+            }
+            (total, grads)
+        };
+        let mut p = params0.clone();
+        let (_, grads) = run(&mut p, &mut graph, true);
+        let h = 2e-3f32;
+        let mut checked = 0;
+        for (ti, spec) in params0.specs().iter().enumerate() {
+            if spec.role == Role::Buffer {
+                continue;
+            }
+            for k in params0.range(ti).step_by(3) {
+                let mut pp = params0.clone();
+                pp.data_mut()[k] += h;
+                let lp = run(&mut pp, &mut graph, false).0;
+                let mut pm = params0.clone();
+                pm.data_mut()[k] -= h;
+                let lm = run(&mut pm, &mut graph, false).0;
+                let fd = (lp - lm) / (2.0 * h as f64);
+                assert!(
+                    (grads[k] as f64 - fd).abs() <= 1e-2 * (1.0 + fd.abs()),
+                    "{}[{}]: analytic {} fd {}",
+                    spec.name,
+                    k - params0.range(ti).start,
+                    grads[k],
+                    fd
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 50);
+    }
+
+    #[test]
+    fn folded_network_matches_unfolded_eval_graph() {
+        let arch = Arch::paper(3);
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        let mut params = ParamSet::init(&arch, &mut rng);
+        // Non-trivial batch-norm statistics and affine parameters.
+        for l in 1..=arch.conv.len() {
+            for v in params.get_mut(&format!("bn{l}.running_mean")) {
+                *v = rng.random_range(-0.5..0.5);
+            }
+            for v in params.get_mut(&format!("bn{l}.running_var")) {
+                *v = rng.random_range(0.2..2.0);
+            }
+            for v in params.get_mut(&format!("bn{l}.weight")) {
+                *v = rng.random_range(0.5..1.5);
+            }
+            for v in params.get_mut(&format!("bn{l}.bias")) {
+                *v = rng.random_range(-0.3..0.3);
+            }
+        }
+        let n = 64;
+        let mut graph = Graph::new(&arch, n);
+        let x = rand_mat(&mut rng, 2, n);
+        graph.input_mut().copy_from(x.as_ref());
+        graph.forward(&mut params, Mode::Eval);
+        let unfolded = graph.output().to_owned();
+        let net = Network::fold(&params);
+        let mut scratch = net.scratch(16); // force chunking
+        let mut out = Mat::zeros(3, n);
+        net.forward(x.as_ref(), out.as_mut(), &mut scratch);
+        let mut one = [0.0f32; 3];
+        let mut worst = 0.0f32;
+        for j in 0..n {
+            net.forward_one(&[x[(0, j)], x[(1, j)]], &mut one, &mut scratch);
+            for k in 0..3 {
+                worst = worst.max((out[(k, j)] - unfolded[(k, j)]).abs());
+                worst = worst.max((one[k] - unfolded[(k, j)]).abs());
+            }
+        }
+        assert!(
+            worst < 1e-5,
+            "folded vs unfolded max abs difference {worst}"
+        );
+    }
+
+    #[test]
+    fn training_is_deterministic_and_learns() {
+        let mut rng = ChaCha8Rng::seed_from_u64(13);
+        let mut data = Dataset::default();
+        for _ in 0..600 {
+            let h: f32 = rng.random_range(0.0..90.0);
+            let s: f32 = rng.random_range(0.5..3.0);
+            data.push(s * h.to_radians().cos(), s * h.to_radians().sin(), h);
+        }
+        let (tr, va) = (
+            Dataset {
+                v_north: data.v_north[..500].to_vec(),
+                v_east: data.v_east[..500].to_vec(),
+                heading_deg: data.heading_deg[..500].to_vec(),
+            },
+            Dataset {
+                v_north: data.v_north[500..].to_vec(),
+                v_east: data.v_east[500..].to_vec(),
+                heading_deg: data.heading_deg[500..].to_vec(),
+            },
+        );
+        let head = Head::Angle {
+            centre_deg: 45.0,
+            half_range_deg: 45.0,
+        };
+        let cfg = TrainConfig {
+            epochs: 30,
+            batch: 50,
+            lr: 5e-3,
+            ..Default::default()
+        };
+        let mut first = None;
+        let a = train(&Arch::tiny(2), &head, 3.0, &tr, &va, &cfg, |r| {
+            first.get_or_insert(r.val_mae_deg);
+        });
+        let b = train(&Arch::tiny(2), &head, 3.0, &tr, &va, &cfg, |_| {});
+        assert_eq!(
+            a.params.data(),
+            b.params.data(),
+            "same seed must give same weights"
+        );
+        assert!(
+            a.best_val_mae_deg < 0.5 * first.unwrap(),
+            "validation MAE should halve: first {} best {}",
+            first.unwrap(),
+            a.best_val_mae_deg
+        );
+        let c = train(
+            &Arch::tiny(2),
+            &head,
+            3.0,
+            &tr,
+            &va,
+            &TrainConfig { seed: 2, ..cfg },
+            |_| {},
+        );
+        assert_ne!(a.params.data(), c.params.data());
+    }
+}

@@ -1,0 +1,414 @@
+//! Weights on disk: safetensors with PyTorch `state_dict` names, plus ghnet metadata.
+//!
+//! A network trained in PyTorch as
+//! `conv{i} = nn.Conv1d(c_in, c_out, 1)`, `bn{i} = nn.BatchNorm1d(c_out)`,
+//! `fc{i} = nn.Linear(f_in, f_out)` and saved with `safetensors.torch.save_file(
+//! model.state_dict(), path, metadata)` loads unchanged (`num_batches_tracked` buffers are
+//! accepted and ignored). Every tensor is F32, little-endian, row-major, with the PyTorch
+//! shape. The metadata (a string → string map in the safetensors header) carries what the
+//! weights alone cannot: the architecture, the output head, the input scaling, the
+//! heading range, σ calibration, the training data and the measured metrics. The format
+//! is documented in `models/README.md`.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use safetensors::{Dtype, SafeTensors};
+use serde::{Deserialize, Serialize};
+
+use crate::head::Head;
+use crate::params::{Arch, ParamSet};
+
+/// Value of the `format` metadata key this version writes and reads.
+pub const FORMAT: &str = "ghnet/1";
+
+/// What a model file says about itself.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelMeta {
+    /// Format tag, [`FORMAT`].
+    pub format: String,
+    /// Model name, e.g. `ghnet-full`.
+    pub name: String,
+    /// Layer sizes.
+    pub architecture: Arch,
+    /// Activation after each batch norm; only `gelu_tanh` is implemented.
+    pub activation: String,
+    /// How outputs become a heading.
+    pub head: Head,
+    /// Velocities are divided by this (m/s) before entering the network.
+    pub input_scale_mps: f32,
+    /// Heading range the model was trained on, degrees `[lo, hi]`.
+    pub heading_range_deg: [f32; 2],
+    /// Multiplier on the network's σ, fitted on validation data so that 68.3% of errors
+    /// fall within 1σ.
+    pub sigma_scale: f32,
+    /// Free-form description of the training data (simulator and parameters).
+    pub training_data: serde_json::Value,
+    /// Training hyper-parameters and outcome.
+    pub training: serde_json::Value,
+    /// Headline metrics measured on held-out data when the model was made.
+    pub metrics: serde_json::Value,
+}
+
+/// Why a model could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum WeightsError {
+    /// The file could not be read.
+    #[error("cannot read model file {path}: {source}")]
+    Io {
+        /// Path tried.
+        path: String,
+        /// OS error.
+        source: std::io::Error,
+    },
+    /// The bytes are not a safetensors file.
+    #[error("not a safetensors file: {0}")]
+    Format(String),
+    /// A tensor the architecture needs is absent.
+    #[error("missing tensor `{name}` (expected shape {expected:?})")]
+    MissingTensor {
+        /// PyTorch name.
+        name: String,
+        /// Shape the architecture needs.
+        expected: Vec<usize>,
+    },
+    /// A tensor has the wrong shape.
+    #[error("tensor `{name}` has shape {found:?}, expected {expected:?}")]
+    WrongShape {
+        /// PyTorch name.
+        name: String,
+        /// Shape the architecture needs.
+        expected: Vec<usize>,
+        /// Shape in the file.
+        found: Vec<usize>,
+    },
+    /// A tensor is not F32.
+    #[error("tensor `{name}` has dtype {found}, expected F32")]
+    WrongDtype {
+        /// PyTorch name.
+        name: String,
+        /// Dtype in the file.
+        found: String,
+    },
+    /// A tensor holds NaN or infinity.
+    #[error("tensor `{name}` contains non-finite values")]
+    NonFinite {
+        /// PyTorch name.
+        name: String,
+    },
+    /// A metadata key is absent.
+    #[error("missing metadata key `{0}` (a ghnet model file needs it; see models/README.md)")]
+    MissingMetadata(String),
+    /// A metadata value does not parse or is inconsistent.
+    #[error("bad metadata `{key}`: {reason}")]
+    BadMetadata {
+        /// Key.
+        key: String,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+/// Metadata keys whose values are JSON (the others are plain strings or numbers).
+const JSON_KEYS: [&str; 6] = [
+    "architecture",
+    "head",
+    "heading_range_deg",
+    "training_data",
+    "training",
+    "metrics",
+];
+
+/// Serialise weights and metadata to safetensors bytes.
+pub fn to_bytes(params: &ParamSet, meta: &ModelMeta) -> Vec<u8> {
+    let mut views = Vec::new();
+    for (i, spec) in params.specs().iter().enumerate() {
+        let bytes: Vec<u8> = params.data()[params.range(i)]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        views.push((spec.name.clone(), spec.shape.clone(), bytes));
+    }
+    let tensors: Vec<(String, safetensors::tensor::TensorView<'_>)> = views
+        .iter()
+        .map(|(n, s, b)| {
+            (
+                n.clone(),
+                safetensors::tensor::TensorView::new(Dtype::F32, s.clone(), b)
+                    .expect("shape matches data"),
+            )
+        })
+        .collect();
+    let value = serde_json::to_value(meta).expect("metadata serialises");
+    let mut md = HashMap::new();
+    for (k, v) in value.as_object().expect("struct is an object") {
+        let s = match v {
+            serde_json::Value::String(s) if !JSON_KEYS.contains(&k.as_str()) => s.clone(),
+            other => other.to_string(),
+        };
+        md.insert(k.clone(), s);
+    }
+    safetensors::serialize(tensors, Some(md)).expect("safetensors serialisation")
+}
+
+/// Parse safetensors bytes into weights and metadata, validating every tensor against the
+/// architecture the metadata names.
+pub fn from_bytes(bytes: &[u8]) -> Result<(ParamSet, ModelMeta), WeightsError> {
+    let (_, header) =
+        SafeTensors::read_metadata(bytes).map_err(|e| WeightsError::Format(e.to_string()))?;
+    let st = SafeTensors::deserialize(bytes).map_err(|e| WeightsError::Format(e.to_string()))?;
+    let md = header.metadata().clone().unwrap_or_default();
+    let meta = parse_meta(&md)?;
+    if meta.format != FORMAT {
+        return Err(WeightsError::BadMetadata {
+            key: "format".into(),
+            reason: format!("`{}` is not `{FORMAT}`", meta.format),
+        });
+    }
+    if meta.activation != "gelu_tanh" {
+        return Err(WeightsError::BadMetadata {
+            key: "activation".into(),
+            reason: format!("`{}` is not implemented (only gelu_tanh)", meta.activation),
+        });
+    }
+    if meta.architecture.output != meta.head.outputs() {
+        return Err(WeightsError::BadMetadata {
+            key: "architecture".into(),
+            reason: format!(
+                "output {} does not match head {:?} ({} outputs)",
+                meta.architecture.output,
+                meta.head,
+                meta.head.outputs()
+            ),
+        });
+    }
+    if !(meta.input_scale_mps.is_finite() && meta.input_scale_mps > 0.0) {
+        return Err(WeightsError::BadMetadata {
+            key: "input_scale_mps".into(),
+            reason: "must be a positive number".into(),
+        });
+    }
+    let mut params = ParamSet::zeros(&meta.architecture);
+    for i in 0..params.specs().len() {
+        let spec = params.specs()[i].clone();
+        let view = st
+            .tensor(&spec.name)
+            .map_err(|_| WeightsError::MissingTensor {
+                name: spec.name.clone(),
+                expected: spec.shape.clone(),
+            })?;
+        if view.dtype() != Dtype::F32 {
+            return Err(WeightsError::WrongDtype {
+                name: spec.name.clone(),
+                found: format!("{:?}", view.dtype()),
+            });
+        }
+        if view.shape() != spec.shape.as_slice() {
+            return Err(WeightsError::WrongShape {
+                name: spec.name.clone(),
+                expected: spec.shape.clone(),
+                found: view.shape().to_vec(),
+            });
+        }
+        let r = params.range(i);
+        for (dst, chunk) in params.data_mut()[r]
+            .iter_mut()
+            .zip(view.data().chunks_exact(4))
+        {
+            *dst = f32::from_le_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
+            if !dst.is_finite() {
+                return Err(WeightsError::NonFinite {
+                    name: spec.name.clone(),
+                });
+            }
+        }
+    }
+    Ok((params, meta))
+}
+
+fn parse_meta(md: &HashMap<String, String>) -> Result<ModelMeta, WeightsError> {
+    let mut obj = serde_json::Map::new();
+    for key in [
+        "format",
+        "name",
+        "architecture",
+        "activation",
+        "head",
+        "input_scale_mps",
+        "heading_range_deg",
+        "sigma_scale",
+        "training_data",
+        "training",
+        "metrics",
+    ] {
+        let raw = md
+            .get(key)
+            .ok_or_else(|| WeightsError::MissingMetadata(key.into()))?;
+        let value = if JSON_KEYS.contains(&key) || key == "input_scale_mps" || key == "sigma_scale"
+        {
+            serde_json::from_str(raw).map_err(|e| WeightsError::BadMetadata {
+                key: key.into(),
+                reason: e.to_string(),
+            })?
+        } else {
+            serde_json::Value::String(raw.clone())
+        };
+        obj.insert(key.into(), value);
+    }
+    serde_json::from_value(serde_json::Value::Object(obj)).map_err(|e| WeightsError::BadMetadata {
+        key: "(metadata)".into(),
+        reason: e.to_string(),
+    })
+}
+
+/// Read a model file.
+pub fn read(path: &Path) -> Result<(ParamSet, ModelMeta), WeightsError> {
+    let bytes = std::fs::read(path).map_err(|source| WeightsError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    from_bytes(&bytes)
+}
+
+/// Write a model file.
+pub fn write(path: &Path, params: &ParamSet, meta: &ModelMeta) -> std::io::Result<()> {
+    std::fs::write(path, to_bytes(params, meta))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    fn sample() -> (ParamSet, ModelMeta) {
+        let arch = Arch::paper(3);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let params = ParamSet::init(&arch, &mut rng);
+        let meta = ModelMeta {
+            format: FORMAT.into(),
+            name: "test".into(),
+            architecture: arch,
+            activation: "gelu_tanh".into(),
+            head: Head::Residual,
+            input_scale_mps: 5.0,
+            heading_range_deg: [0.0, 360.0],
+            sigma_scale: 1.25,
+            training_data: serde_json::json!({"sim": "none"}),
+            training: serde_json::json!({}),
+            metrics: serde_json::json!({"mae": 1.5}),
+        };
+        (params, meta)
+    }
+
+    #[test]
+    fn round_trip_is_exact() {
+        let (p, m) = sample();
+        let bytes = to_bytes(&p, &m);
+        let (p2, m2) = from_bytes(&bytes).unwrap();
+        assert_eq!(p.data(), p2.data());
+        assert_eq!(m, m2);
+    }
+
+    fn rewrite(
+        p: &ParamSet,
+        m: &ModelMeta,
+        edit: impl Fn(&mut Vec<(String, Vec<usize>, Vec<u8>)>),
+    ) -> Vec<u8> {
+        let mut t: Vec<(String, Vec<usize>, Vec<u8>)> = p
+            .specs()
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                (
+                    s.name.clone(),
+                    s.shape.clone(),
+                    p.data()[p.range(i)]
+                        .iter()
+                        .flat_map(|v| v.to_le_bytes())
+                        .collect(),
+                )
+            })
+            .collect();
+        edit(&mut t);
+        let views: Vec<_> = t
+            .iter()
+            .map(|(n, s, b)| {
+                let dtype = if b.len() == s.iter().product::<usize>() * 8 {
+                    Dtype::F64
+                } else {
+                    Dtype::F32
+                };
+                (
+                    n.clone(),
+                    safetensors::tensor::TensorView::new(dtype, s.clone(), b).unwrap(),
+                )
+            })
+            .collect();
+        let full = to_bytes(p, m);
+        let (_, header) = SafeTensors::read_metadata(&full).unwrap();
+        safetensors::serialize(views, header.metadata().clone()).unwrap()
+    }
+
+    #[test]
+    fn malformed_files_name_the_tensor_and_shape() {
+        let (p, m) = sample();
+        let missing = rewrite(&p, &m, |t| t.retain(|(n, _, _)| n != "conv3.weight"));
+        let err = from_bytes(&missing).unwrap_err().to_string();
+        assert!(
+            err.contains("conv3.weight") && err.contains("[96, 48, 1]"),
+            "{err}"
+        );
+
+        let wrong = rewrite(&p, &m, |t| {
+            let e = t.iter_mut().find(|(n, _, _)| n == "fc2.weight").unwrap();
+            e.1 = vec![e.1[1], e.1[0]];
+        });
+        let err = from_bytes(&wrong).unwrap_err().to_string();
+        assert!(
+            err.contains("fc2.weight") && err.contains("[10, 60]") && err.contains("[60, 10]"),
+            "{err}"
+        );
+
+        let f64s = rewrite(&p, &m, |t| {
+            let e = t.iter_mut().find(|(n, _, _)| n == "bn1.bias").unwrap();
+            e.2 = vec![0u8; e.1.iter().product::<usize>() * 8];
+        });
+        let err = from_bytes(&f64s).unwrap_err().to_string();
+        assert!(err.contains("bn1.bias") && err.contains("F64"), "{err}");
+
+        let err = from_bytes(b"not a model").unwrap_err().to_string();
+        assert!(err.contains("not a safetensors file"), "{err}");
+        let mut trunc = to_bytes(&p, &m);
+        trunc.truncate(trunc.len() - 10);
+        assert!(from_bytes(&trunc).is_err());
+    }
+
+    #[test]
+    fn missing_metadata_is_named() {
+        let (p, _) = sample();
+        let views: Vec<_> = p
+            .specs()
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let b: Vec<u8> = p.data()[p.range(i)]
+                    .iter()
+                    .flat_map(|v| v.to_le_bytes())
+                    .collect();
+                (s.name.clone(), s.shape.clone(), b)
+            })
+            .collect();
+        let tv: Vec<_> = views
+            .iter()
+            .map(|(n, s, b)| {
+                (
+                    n.clone(),
+                    safetensors::tensor::TensorView::new(Dtype::F32, s.clone(), b).unwrap(),
+                )
+            })
+            .collect();
+        let bytes = safetensors::serialize(tv, None).unwrap();
+        let err = from_bytes(&bytes).unwrap_err().to_string();
+        assert!(err.contains("missing metadata key `format`"), "{err}");
+    }
+}
