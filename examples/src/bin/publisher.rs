@@ -1,0 +1,83 @@
+//! `publisher`: one simulated vehicle sending `VelocitySample`s to ghnetd.
+//!
+//! Teaches: `VelocityPublisher` (loan → write → send → notify, straight into shared
+//! memory), real timestamps, increasing sequence numbers, pacing with `node.wait`
+//! (which also ends the loop on Ctrl-C), and waiting for the daemon before the first
+//! sample (ghnet services keep no history).
+//!
+//! Run (with `ghnetd` and `subscriber` in other terminals, see examples/README.md):
+//!
+//! ```text
+//! cargo run -p ghnet-examples --bin publisher -- --source gnss0 --rate 10 --duration 60
+//! ```
+
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::Parser;
+use ghnet_client::VelocityPublisher;
+use ghnet_examples::{
+    now_ns, pacing_node, wait_for_subscriber, CommonArgs, Interrupted, Pacer, Vehicle,
+};
+
+/// Sends a simulated vehicle's GNSS velocities on `<prefix>/<source>/velocity`.
+#[derive(Parser)]
+struct Args {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Source name (the `<source>` level of the service name).
+    #[arg(long, default_value = "gnss0")]
+    source: String,
+    /// Samples per second.
+    #[arg(long, default_value_t = 10.0)]
+    rate: f64,
+    /// Seconds to publish; 0 = until Ctrl-C.
+    #[arg(long, default_value_t = 60.0)]
+    duration: f64,
+    /// Seconds to wait for a subscriber (ghnetd) before sending anyway.
+    #[arg(long, default_value_t = 5.0)]
+    wait: f64,
+    /// Simulation seed: picks the trajectory and the receiver.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+fn main() -> ExitCode {
+    match run(Args::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(args: Args) -> anyhow::Result<()> {
+    let ipc = args.common.ipc()?;
+    let node = pacing_node(&ipc, "ghnet-example-publisher")?;
+    let gnss = VelocityPublisher::with_node(&node, &ipc, &args.source)?;
+    let mut vehicle = Vehicle::new(args.seed, args.rate, args.duration.max(60.0));
+
+    // No history: a sample sent before ghnetd subscribed would never be answered.
+    let patience = Duration::from_secs_f64(args.wait);
+    if let Err(e) = wait_for_subscriber(&node, &[&gnss], patience, || false) {
+        if e.is::<Interrupted>() {
+            return Ok(());
+        }
+        eprintln!("warning: {e:#}; sending anyway");
+    }
+
+    println!("publishing on {} at {} Hz", gnss.service_name(), args.rate);
+    let total = (args.duration * args.rate).round() as u64; // 0 = until Ctrl-C
+    let pacer = Pacer::new(args.rate)?;
+    let mut seq = 0;
+    while total == 0 || seq < total {
+        gnss.send(vehicle.next_sample(seq, now_ns()))?;
+        seq += 1;
+        if pacer.wait_for_slot(&node, seq).is_err() {
+            break; // Ctrl-C / SIGTERM: ports are dropped cleanly on return
+        }
+    }
+    println!("sent {seq} samples (seq 0..{seq})");
+    Ok(())
+}
