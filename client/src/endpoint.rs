@@ -343,17 +343,19 @@ impl<T: Message> Receiver<T> {
 
     fn build(node: &Node<ipc::Service>, ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
         let pair = Pair::<T>::open(node, ipc, source)?;
+        // Listener first: once a publisher sees this subscriber (subscriber_count),
+        // its notifications must already have somewhere to go.
+        let listener = pair
+            .event
+            .listener_builder()
+            .create()
+            .map_err(pair.port_error("listener"))?;
         let subscriber = pair
             .pubsub
             .subscriber_builder()
             .buffer_size(SERVICE_SETTINGS.subscriber_buffer_size)
             .create()
             .map_err(pair.port_error("subscriber"))?;
-        let listener = pair
-            .event
-            .listener_builder()
-            .create()
-            .map_err(pair.port_error("listener"))?;
         Ok(Self {
             subscriber,
             listener,

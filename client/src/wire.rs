@@ -148,7 +148,8 @@ pub enum HeadingStatus {
     /// Moving, but too slowly for a trustworthy heading (std above the policy limit);
     /// the heading and std are still filled in.
     LowSpeed = 1,
-    /// Horizontal speed below the stationary threshold: heading is meaningless (NaN).
+    /// Horizontal speed below the stationary threshold: heading is not observable.
+    /// The fields carry whatever the model computed; do not use them.
     Stationary = 2,
     /// The input was rejected (non-finite value, speed above the limit, negative
     /// accuracy, receiver-flagged invalid, timestamp going backwards). Heading fields
@@ -196,7 +197,7 @@ pub struct HeadingEstimate {
     /// handing the answer to the publisher, in nanoseconds.
     pub processing_ns: u64,
     /// Model heading in degrees clockwise from north, `[0, 360)`; NaN when
-    /// [`status`](Self::status) is `Stationary` or `InvalidInput`.
+    /// [`status`](Self::status) is `InvalidInput`, meaningless when `Stationary`.
     pub heading_deg: f32,
     /// 1σ uncertainty of `heading_deg` in degrees as predicted by the model; NaN when
     /// the heading is NaN.
