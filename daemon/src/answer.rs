@@ -1,0 +1,314 @@
+//! Per-sample logic without IPC: input checks, sequence/time bookkeeping, the model
+//! call and the mapping to the wire. Kept apart from the event loop so it is tested
+//! directly, and so the hot path is visibly allocation-free.
+
+use ghnet_client::{flags, HeadingEstimate, HeadingStatus, VelocitySample, MODEL_NAME_LEN};
+use ghnet_models::{Prediction, Predictor, Status};
+use serde::Serialize;
+
+/// Counters of one source. Every received sample is answered exactly once (unless
+/// the send itself fails), so `received == answered + send_errors` at all times.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct Counters {
+    /// Samples taken from the velocity service.
+    pub received: u64,
+    /// Estimates published on the heading service.
+    pub answered: u64,
+    /// Samples answered with `InvalidInput` (any reason, including `backwards`).
+    pub invalid: u64,
+    /// Missing sequence numbers: a jump from 4 to 7 adds 2. Also counts samples the
+    /// subscriber buffer overwrote because the daemon fell behind.
+    pub gaps: u64,
+    /// Samples whose sequence number was not greater than the previous one (repeats,
+    /// reordering, or a publisher restarting its counter).
+    pub duplicates: u64,
+    /// Samples whose timestamp was earlier than the previous sample's (answered as
+    /// `InvalidInput`, also counted in `invalid`).
+    pub backwards: u64,
+    /// Answers that could not be published (loan or send failed).
+    pub send_errors: u64,
+}
+
+impl Counters {
+    /// Field-wise sum, for totals and for sources that come back.
+    pub fn add(&mut self, o: &Counters) {
+        self.received += o.received;
+        self.answered += o.answered;
+        self.invalid += o.invalid;
+        self.gaps += o.gaps;
+        self.duplicates += o.duplicates;
+        self.backwards += o.backwards;
+        self.send_errors += o.send_errors;
+    }
+}
+
+/// Input limits besides the model's own (which checks horizontal speed itself).
+#[derive(Debug, Clone, Copy)]
+pub struct Limits {
+    /// Largest accepted 3-D speed, m/s (`model.max_speed`).
+    pub max_speed: f32,
+}
+
+/// What the model answers with, copied once per source so the hot path does not
+/// touch the model's strings.
+#[derive(Debug, Clone, Copy)]
+pub struct ModelTag {
+    /// [`HeadingEstimate::model_id`].
+    pub id: u32,
+    /// [`HeadingEstimate::model_name`].
+    pub name: [u8; MODEL_NAME_LEN],
+}
+
+/// Per-source state: the previous sample's sequence number and timestamp, and the
+/// counters.
+#[derive(Debug, Clone, Default)]
+pub struct Tracker {
+    last: Option<(u64, u64)>,
+    /// The counters so far.
+    pub counters: Counters,
+}
+
+impl Tracker {
+    /// A tracker that continues earlier counters (a source that comes back) but
+    /// forgets the previous sample (a new publisher may restart its sequence).
+    pub fn resume(counters: Counters) -> Self {
+        Self {
+            last: None,
+            counters,
+        }
+    }
+
+    /// Books `s` and computes its answer. `processing_ns` is left at 0 for the caller,
+    /// who measures around the whole path.
+    pub fn answer(
+        &mut self,
+        s: &VelocitySample,
+        predictor: &mut Predictor,
+        limits: &Limits,
+        tag: &ModelTag,
+    ) -> HeadingEstimate {
+        self.counters.received += 1;
+        let mut backwards = false;
+        if let Some((last_seq, last_ts)) = self.last {
+            if s.seq > last_seq {
+                self.counters.gaps += s.seq - last_seq - 1;
+            } else {
+                self.counters.duplicates += 1;
+            }
+            backwards = s.timestamp_ns < last_ts;
+        }
+        // Always move on to this sample: one outlier then costs at most one more
+        // flagged sample instead of poisoning the rest of the stream.
+        self.last = Some((s.seq, s.timestamp_ns));
+
+        let prediction = if backwards {
+            self.counters.backwards += 1;
+            None
+        } else if input_ok(s, limits) {
+            Some(predictor.predict(s.v_north, s.v_east))
+        } else {
+            None
+        };
+
+        let (heading_deg, heading_std_deg, atan2_deg, speed, status) = match prediction {
+            Some(Prediction {
+                heading_deg,
+                std_deg,
+                atan2_deg,
+                speed,
+                status,
+            }) if status != Status::Invalid => {
+                (heading_deg, std_deg, atan2_deg, speed, wire_status(status))
+            }
+            _ => {
+                self.counters.invalid += 1;
+                let speed = s.v_north.hypot(s.v_east);
+                let nan = f32::NAN;
+                (nan, nan, nan, speed, HeadingStatus::InvalidInput)
+            }
+        };
+
+        HeadingEstimate {
+            timestamp_ns: s.timestamp_ns,
+            seq: s.seq,
+            processing_ns: 0,
+            heading_deg,
+            heading_std_deg,
+            atan2_deg,
+            speed,
+            model_id: tag.id,
+            status: status.as_u32(),
+            model_name: tag.name,
+        }
+    }
+}
+
+/// The daemon's input checks (the model additionally rejects non-finite horizontal
+/// components and horizontal speed above its `max_speed`).
+fn input_ok(s: &VelocitySample, limits: &Limits) -> bool {
+    if s.flags & flags::INVALID != 0 {
+        return false;
+    }
+    let down_known = s.flags & flags::V_DOWN_UNKNOWN == 0;
+    let v_down = if down_known { s.v_down } else { 0.0 };
+    if !(s.v_north.is_finite() && s.v_east.is_finite() && v_down.is_finite()) {
+        return false;
+    }
+    // NaN = unknown is fine; negative or infinite is a broken receiver.
+    let acc = s.speed_accuracy;
+    let acc_ok = acc.is_nan() || (acc >= 0.0 && acc.is_finite());
+    if !acc_ok {
+        return false;
+    }
+    let speed3 = (s.v_north * s.v_north + s.v_east * s.v_east + v_down * v_down).sqrt();
+    speed3 <= limits.max_speed
+}
+
+/// models::Status → wire status. `Invalid` is handled by the caller.
+fn wire_status(s: Status) -> HeadingStatus {
+    match s {
+        Status::Ok => HeadingStatus::Ok,
+        Status::LowSpeed => HeadingStatus::LowSpeed,
+        Status::Stationary => HeadingStatus::Stationary,
+        Status::Invalid => HeadingStatus::InvalidInput,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+
+    fn setup() -> (Predictor, Limits, ModelTag) {
+        let model = Arc::new(crate::test_model::untrained("unit-test"));
+        let tag = ModelTag {
+            id: model.id(),
+            name: HeadingEstimate::encode_model_name(model.name()),
+        };
+        (Predictor::new(model), Limits { max_speed: 100.0 }, tag)
+    }
+
+    /// A valid moving sample gets Ok or LowSpeed, depending on the (untrained)
+    /// model's σ.
+    fn moving_ok(h: &HeadingEstimate) -> bool {
+        matches!(
+            h.heading_status(),
+            Some(HeadingStatus::Ok | HeadingStatus::LowSpeed)
+        )
+    }
+
+    fn sample(seq: u64, ts: u64, vn: f32, ve: f32) -> VelocitySample {
+        VelocitySample::new(ts, seq, vn, ve, 0.0)
+    }
+
+    #[test]
+    fn valid_sample_is_answered_with_echo_and_heading() {
+        let (mut p, l, tag) = setup();
+        let mut t = Tracker::default();
+        let h = t.answer(&sample(5, 1000, 0.0, 10.0), &mut p, &l, &tag);
+        assert_eq!((h.seq, h.timestamp_ns), (5, 1000));
+        assert!(moving_ok(&h), "{h:?}");
+        assert!(
+            (h.atan2_deg - 90.0).abs() < 1e-3,
+            "east is 90°: {}",
+            h.atan2_deg
+        );
+        assert!((0.0..360.0).contains(&h.heading_deg), "{}", h.heading_deg);
+        assert!(h.heading_std_deg > 0.0);
+        assert!((h.speed - 10.0).abs() < 1e-5);
+        assert_eq!(h.model_id, tag.id);
+        assert_eq!(h.model_name_str(), "unit-test");
+        assert_eq!(t.counters.received, 1);
+        assert_eq!(t.counters.invalid, 0);
+    }
+
+    #[test]
+    fn stationary_maps_through() {
+        let (mut p, l, tag) = setup();
+        let h = Tracker::default().answer(&sample(0, 0, 0.0, 0.0), &mut p, &l, &tag);
+        assert_eq!(h.heading_status(), Some(HeadingStatus::Stationary));
+    }
+
+    #[test]
+    fn invalid_inputs_are_answered_and_counted() {
+        let (mut p, l, tag) = setup();
+        let mut cases = vec![
+            sample(0, 0, f32::NAN, 1.0),
+            sample(0, 0, 1.0, f32::INFINITY),
+            sample(0, 0, 80.0, 80.0), // 113 m/s horizontal
+        ];
+        let mut s = sample(0, 0, 1.0, 1.0);
+        s.v_down = 100.0; // horizontal fine, 3-D speed above the limit
+        cases.push(s);
+        s = sample(0, 0, 1.0, 1.0);
+        s.v_down = f32::NAN;
+        cases.push(s);
+        s = sample(0, 0, 1.0, 1.0);
+        s.speed_accuracy = -0.1;
+        cases.push(s);
+        s.speed_accuracy = f32::INFINITY;
+        cases.push(s);
+        s = sample(0, 0, 1.0, 1.0);
+        s.flags = flags::INVALID;
+        cases.push(s);
+        for (i, c) in cases.iter().enumerate() {
+            let mut t = Tracker::default();
+            let h = t.answer(c, &mut p, &l, &tag);
+            assert_eq!(
+                h.heading_status(),
+                Some(HeadingStatus::InvalidInput),
+                "case {i}: {c:?}"
+            );
+            assert!(
+                h.heading_deg.is_nan() && h.heading_std_deg.is_nan(),
+                "case {i}"
+            );
+            assert_eq!(t.counters.invalid, 1, "case {i}");
+        }
+    }
+
+    #[test]
+    fn unknown_down_and_unknown_accuracy_are_fine() {
+        let (mut p, l, tag) = setup();
+        let mut s = sample(0, 0, 3.0, 4.0);
+        s.v_down = f32::NAN;
+        s.flags = flags::V_DOWN_UNKNOWN | flags::SIMULATED | (1 << 20);
+        assert!(s.speed_accuracy.is_nan());
+        let h = Tracker::default().answer(&s, &mut p, &l, &tag);
+        assert!(moving_ok(&h), "{h:?}");
+    }
+
+    #[test]
+    fn gaps_duplicates_and_backwards_time() {
+        let (mut p, l, tag) = setup();
+        let mut t = Tracker::default();
+        let mut go = |seq, ts| t.answer(&sample(seq, ts, 0.0, 5.0), &mut p, &l, &tag);
+        go(10, 100);
+        go(11, 110);
+        go(14, 140); // gap of 2
+        go(14, 140); // duplicate, same time is not backwards
+        let h = go(15, 120); // backwards
+        assert_eq!(h.heading_status(), Some(HeadingStatus::InvalidInput));
+        let h = go(16, 130); // forward again from the last sample
+        assert!(moving_ok(&h), "{h:?}");
+        go(0, 200); // publisher restarted its counter
+        go(1, 210);
+        let c = t.counters;
+        assert_eq!(c.received, 8);
+        assert_eq!(c.gaps, 2);
+        assert_eq!(c.duplicates, 2);
+        assert_eq!(c.backwards, 1);
+        assert_eq!(c.invalid, 1);
+    }
+
+    #[test]
+    fn resume_keeps_counts_but_not_sequence() {
+        let (mut p, l, tag) = setup();
+        let mut t = Tracker::default();
+        t.answer(&sample(100, 100, 1.0, 1.0), &mut p, &l, &tag);
+        let mut t = Tracker::resume(t.counters);
+        t.answer(&sample(0, 0, 1.0, 1.0), &mut p, &l, &tag);
+        assert_eq!(t.counters.received, 2);
+        assert_eq!(t.counters.duplicates + t.counters.backwards, 0);
+    }
+}

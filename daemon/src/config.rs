@@ -1,0 +1,524 @@
+//! Configuration: built-in defaults, then a TOML file, then command-line flags.
+//!
+//! The file is optional; with none, `ghnetd` serves discovered sources with the
+//! embedded `ghnet-full` model. Unknown keys are errors (a typo must not silently fall
+//! back to a default). `ghnetd --print-config` prints the effective result, and
+//! `daemon/ghnetd.example.toml` is tested to equal the defaults.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{bail, Context};
+use clap::Parser;
+use ghnet_client::iceoryx2;
+use ghnet_client::{names, IpcConfig};
+use serde::{Deserialize, Serialize};
+
+/// Upper bound for `sources.max_sources`: every source is one WaitSet attachment and
+/// four iceoryx2 ports; far more than one host's GNSS receivers.
+pub const MAX_SOURCES_LIMIT: usize = 1024;
+
+/// The daemon's configuration. Field docs are the documentation of the TOML keys.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    /// Where the services live.
+    pub ipc: IpcSection,
+    /// Which sources are served.
+    pub sources: SourcesSection,
+    /// Which model answers, and its status thresholds.
+    pub model: ModelSection,
+    /// Periodic counters in the log.
+    pub stats: StatsSection,
+}
+
+/// `[ipc]`
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IpcSection {
+    /// First level(s) of every service name: `<service_prefix>/<source>/velocity`.
+    pub service_prefix: String,
+    /// iceoryx2 `global.prefix` override (file-name prefix in `/dev/shm`); unset = the
+    /// system iceoryx2 config. Set it (with `iceoryx2_root_path`) to run an isolated
+    /// instance, e.g. in tests.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub iceoryx2_global_prefix: Option<String>,
+    /// iceoryx2 root path override (node and service records, default `/tmp/iceoryx2/`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub iceoryx2_root_path: Option<PathBuf>,
+}
+
+impl Default for IpcSection {
+    fn default() -> Self {
+        Self {
+            service_prefix: names::DEFAULT_PREFIX.to_owned(),
+            iceoryx2_global_prefix: None,
+            iceoryx2_root_path: None,
+        }
+    }
+}
+
+/// `[sources]`
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SourcesSection {
+    /// Sources served from the start and never dropped, even without publishers.
+    #[serde(rename = "static")]
+    pub static_sources: Vec<String>,
+    /// Serve any `<prefix>/<source>/velocity` service that appears while running, and
+    /// drop it again when its last publisher is gone.
+    pub discovery: bool,
+    /// How often to look for new sources, gone publishers and dead processes (ms).
+    pub discovery_interval_ms: u64,
+    /// Most sources served at once (static + discovered); more are logged and ignored.
+    pub max_sources: usize,
+}
+
+impl Default for SourcesSection {
+    fn default() -> Self {
+        Self {
+            static_sources: Vec::new(),
+            discovery: true,
+            discovery_interval_ms: 250,
+            max_sources: 32,
+        }
+    }
+}
+
+/// `[model]`
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelSection {
+    /// A built-in model (`ghnet-full`, `paper-s1`) or a path to a `.safetensors` file
+    /// (relative to the working directory).
+    pub name: String,
+    /// Below this horizontal speed (m/s) the status is `Stationary`.
+    pub stationary_speed: f64,
+    /// Above this heading σ (deg) the status is `LowSpeed`.
+    pub max_std_deg: f64,
+    /// Above this speed (m/s) the input is `InvalidInput` (a receiver glitch, not a
+    /// vehicle).
+    pub max_speed: f64,
+}
+
+impl Default for ModelSection {
+    fn default() -> Self {
+        let p = ghnet_models::StatusPolicy::default();
+        Self {
+            name: ghnet_models::DEFAULT_MODEL.to_owned(),
+            // Through the f32 Display so 0.05f32 becomes 0.05, not 0.05000000074505806.
+            stationary_speed: f32_to_f64(p.stationary_speed),
+            max_std_deg: f32_to_f64(p.max_std_deg),
+            max_speed: f32_to_f64(p.max_speed),
+        }
+    }
+}
+
+fn f32_to_f64(v: f32) -> f64 {
+    v.to_string().parse().unwrap_or(v as f64)
+}
+
+/// `[stats]`
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StatsSection {
+    /// Seconds between per-source counter lines at info level (0..=86400); 0 = never.
+    pub interval_s: u64,
+}
+
+impl Default for StatsSection {
+    fn default() -> Self {
+        Self { interval_s: 10 }
+    }
+}
+
+/// Command-line flags. Every flag overrides the matching config key.
+#[derive(Debug, Clone, Default, Parser)]
+#[command(
+    name = "ghnetd",
+    version,
+    about = "ghnet heading sidecar: answers GNSS velocity samples on iceoryx2 with heading estimates",
+    long_about = "ghnet heading sidecar: reads VelocitySample from <prefix>/<source>/velocity \
+                  and answers each with one HeadingEstimate on <prefix>/<source>/heading.\n\n\
+                  Precedence: built-in defaults < --config file < flags. Logging: RUST_LOG \
+                  (default info). SIGINT/SIGTERM: answer what is buffered, release iceoryx2 \
+                  resources, exit 0."
+)]
+pub struct Cli {
+    /// TOML config file; without one the built-in defaults apply.
+    #[arg(long, short = 'c', env = "GHNETD_CONFIG", value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Print the effective config as TOML and exit.
+    #[arg(long)]
+    pub print_config: bool,
+    /// ipc.service_prefix: first level(s) of the service names.
+    #[arg(long, value_name = "PREFIX")]
+    pub service_prefix: Option<String>,
+    /// ipc.iceoryx2_global_prefix: iceoryx2 /dev/shm file prefix (isolated instances).
+    #[arg(long, value_name = "PREFIX")]
+    pub iceoryx2_global_prefix: Option<String>,
+    /// ipc.iceoryx2_root_path: iceoryx2 root directory (isolated instances).
+    #[arg(long, value_name = "DIR")]
+    pub iceoryx2_root_path: Option<PathBuf>,
+    /// sources.static: serve this source from the start (repeatable; replaces the
+    /// file's list).
+    #[arg(long = "source", value_name = "NAME")]
+    pub sources: Vec<String>,
+    /// sources.discovery: serve sources that appear while running.
+    #[arg(long, value_name = "BOOL", num_args = 1)]
+    pub discovery: Option<bool>,
+    /// sources.discovery_interval_ms: discovery and liveness period.
+    #[arg(long, value_name = "MS")]
+    pub discovery_interval_ms: Option<u64>,
+    /// sources.max_sources: most sources served at once.
+    #[arg(long, value_name = "N")]
+    pub max_sources: Option<usize>,
+    /// model.name: built-in model name or .safetensors path.
+    #[arg(long, value_name = "NAME|PATH")]
+    pub model: Option<String>,
+    /// model.stationary_speed (m/s).
+    #[arg(long, value_name = "M_PER_S")]
+    pub stationary_speed: Option<f64>,
+    /// model.max_std_deg (deg).
+    #[arg(long, value_name = "DEG")]
+    pub max_std_deg: Option<f64>,
+    /// model.max_speed (m/s).
+    #[arg(long, value_name = "M_PER_S")]
+    pub max_speed: Option<f64>,
+    /// stats.interval_s: seconds between counter log lines, 0 = never.
+    #[arg(long, value_name = "S")]
+    pub stats_interval_s: Option<u64>,
+}
+
+impl Config {
+    /// Parses TOML text (unknown keys are errors).
+    pub fn from_toml(text: &str) -> anyhow::Result<Self> {
+        // toml's message spans several lines (it quotes the line); keep the first.
+        toml::from_str(text).map_err(|e| {
+            let msg = e.message().to_owned();
+            match e.span() {
+                Some(span) => {
+                    let line = text[..span.start].matches('\n').count() + 1;
+                    anyhow::anyhow!("line {line}: {msg}")
+                }
+                None => anyhow::anyhow!(msg),
+            }
+        })
+    }
+
+    /// Reads and parses a TOML file.
+    pub fn from_file(path: &Path) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read config file {}", path.display()))?;
+        Self::from_toml(&text).with_context(|| format!("config file {}", path.display()))
+    }
+
+    /// Defaults, then `cli.config` if given, then the flags; validated.
+    pub fn from_cli(cli: &Cli) -> anyhow::Result<Self> {
+        let mut cfg = match &cli.config {
+            Some(path) => Self::from_file(path)?,
+            None => Self::default(),
+        };
+        cfg.apply_flags(cli);
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Overrides keys with the flags that were given.
+    pub fn apply_flags(&mut self, cli: &Cli) {
+        if let Some(v) = &cli.service_prefix {
+            self.ipc.service_prefix = v.clone();
+        }
+        if let Some(v) = &cli.iceoryx2_global_prefix {
+            self.ipc.iceoryx2_global_prefix = Some(v.clone());
+        }
+        if let Some(v) = &cli.iceoryx2_root_path {
+            self.ipc.iceoryx2_root_path = Some(v.clone());
+        }
+        if !cli.sources.is_empty() {
+            self.sources.static_sources = cli.sources.clone();
+        }
+        if let Some(v) = cli.discovery {
+            self.sources.discovery = v;
+        }
+        if let Some(v) = cli.discovery_interval_ms {
+            self.sources.discovery_interval_ms = v;
+        }
+        if let Some(v) = cli.max_sources {
+            self.sources.max_sources = v;
+        }
+        if let Some(v) = &cli.model {
+            self.model.name = v.clone();
+        }
+        if let Some(v) = cli.stationary_speed {
+            self.model.stationary_speed = v;
+        }
+        if let Some(v) = cli.max_std_deg {
+            self.model.max_std_deg = v;
+        }
+        if let Some(v) = cli.max_speed {
+            self.model.max_speed = v;
+        }
+        if let Some(v) = cli.stats_interval_s {
+            self.stats.interval_s = v;
+        }
+    }
+
+    /// Checks every value; the error names the key to fix. (The model file is checked
+    /// when it is loaded.)
+    pub fn validate(&self) -> anyhow::Result<()> {
+        names::validate_prefix(&self.ipc.service_prefix).context("ipc.service_prefix")?;
+        // Builds the iceoryx2 config, which checks prefix and root path.
+        self.ipc_config()?;
+
+        let mut seen = BTreeSet::new();
+        for s in &self.sources.static_sources {
+            names::validate_source_name(s).context("sources.static")?;
+            if !seen.insert(s) {
+                bail!("sources.static: source `{s}` is listed twice");
+            }
+        }
+        let si = self.sources.discovery_interval_ms;
+        if !(10..=60_000).contains(&si) {
+            bail!("sources.discovery_interval_ms: {si} is outside 10..=60000");
+        }
+        let max = self.sources.max_sources;
+        if !(1..=MAX_SOURCES_LIMIT).contains(&max) {
+            bail!("sources.max_sources: {max} is outside 1..={MAX_SOURCES_LIMIT}");
+        }
+        if self.sources.static_sources.len() > max {
+            bail!(
+                "sources.static: {} sources but sources.max_sources is {max}",
+                self.sources.static_sources.len()
+            );
+        }
+        if self.stats.interval_s > 86_400 {
+            bail!(
+                "stats.interval_s: {} is above one day (86400)",
+                self.stats.interval_s
+            );
+        }
+        if self.model.name.trim().is_empty() {
+            bail!("model.name: empty; use a built-in name (ghnet-full, paper-s1) or a .safetensors path");
+        }
+        let m = &self.model;
+        for (key, v) in [
+            ("model.stationary_speed", m.stationary_speed),
+            ("model.max_std_deg", m.max_std_deg),
+            ("model.max_speed", m.max_speed),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("{key}: {v} must be a positive number");
+            }
+        }
+        if m.stationary_speed >= m.max_speed {
+            bail!(
+                "model.stationary_speed: {} must be below model.max_speed ({})",
+                m.stationary_speed,
+                m.max_speed
+            );
+        }
+        Ok(())
+    }
+
+    /// The client-side view: service prefix plus the iceoryx2 config with overrides
+    /// applied on top of the system iceoryx2 config.
+    pub fn ipc_config(&self) -> anyhow::Result<IpcConfig> {
+        let ipc = IpcConfig::new(&self.ipc.service_prefix).context("ipc.service_prefix")?;
+        if self.ipc.iceoryx2_global_prefix.is_none() && self.ipc.iceoryx2_root_path.is_none() {
+            return Ok(ipc);
+        }
+        let base = iceoryx2::config::Config::global_config().clone();
+        let cfg = names::iceoryx2_config(
+            base,
+            self.ipc.iceoryx2_global_prefix.as_deref(),
+            self.ipc.iceoryx2_root_path.clone(),
+        )
+        .context("ipc.iceoryx2_global_prefix / ipc.iceoryx2_root_path")?;
+        Ok(ipc.with_iceoryx2_config(cfg))
+    }
+
+    /// The model's status thresholds.
+    pub fn status_policy(&self) -> ghnet_models::StatusPolicy {
+        ghnet_models::StatusPolicy {
+            stationary_speed: self.model.stationary_speed as f32,
+            max_std_deg: self.model.max_std_deg as f32,
+            max_speed: self.model.max_speed as f32,
+        }
+    }
+
+    /// `sources.discovery_interval_ms` as a duration.
+    pub fn discovery_interval(&self) -> Duration {
+        Duration::from_millis(self.sources.discovery_interval_ms)
+    }
+
+    /// `stats.interval_s` as a duration, `None` when disabled.
+    pub fn stats_interval(&self) -> Option<Duration> {
+        (self.stats.interval_s > 0).then(|| Duration::from_secs(self.stats.interval_s))
+    }
+
+    /// The effective config as TOML (what `--print-config` prints).
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("the config always serialises")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const EXAMPLE: &str = include_str!("../ghnetd.example.toml");
+
+    #[test]
+    fn example_file_equals_defaults_and_print_config() {
+        let example = Config::from_toml(EXAMPLE).expect("example parses");
+        assert_eq!(example, Config::default());
+        // Same keys and values as --print-config, so a new key must be added to the
+        // example (optional keys may appear there commented out).
+        let printed: toml::Table = toml::from_str(&Config::default().to_toml()).unwrap();
+        let shipped: toml::Table = toml::from_str(EXAMPLE).unwrap();
+        assert_eq!(printed, shipped);
+    }
+
+    #[test]
+    fn print_config_round_trips() {
+        let mut c = Config::default();
+        c.ipc.iceoryx2_global_prefix = Some("t_".into());
+        c.ipc.iceoryx2_root_path = Some("/tmp/x".into());
+        c.sources.static_sources = vec!["a".into(), "b".into()];
+        c.model.max_speed = 55.5;
+        assert_eq!(Config::from_toml(&c.to_toml()).unwrap(), c);
+        assert!(Config::default()
+            .to_toml()
+            .contains("stationary_speed = 0.05\n"));
+    }
+
+    #[test]
+    fn empty_file_is_defaults_and_partial_file_merges() {
+        assert_eq!(Config::from_toml("").unwrap(), Config::default());
+        let c = Config::from_toml("[sources]\nstatic = [\"gnss0\"]\n").unwrap();
+        assert_eq!(c.sources.static_sources, vec!["gnss0"]);
+        assert!(c.sources.discovery, "unset keys keep their defaults");
+        assert_eq!(c.model, ModelSection::default());
+    }
+
+    #[test]
+    fn unknown_keys_are_rejected_with_line() {
+        let err = Config::from_toml("[sources]\ndiscovery = true\ndiscovry_interval_ms = 5\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("line 3"), "{err}");
+        assert!(err.contains("discovry_interval_ms"), "{err}");
+        assert!(!err.contains('\n'), "one line: {err}");
+        assert!(Config::from_toml("[nope]\n").is_err());
+        assert!(Config::from_toml("[model]\nname = 3\n").is_err());
+    }
+
+    fn cli(args: &[&str]) -> Cli {
+        Cli::try_parse_from(std::iter::once("ghnetd").chain(args.iter().copied())).unwrap()
+    }
+
+    #[test]
+    fn flags_override_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("g.toml");
+        std::fs::write(
+            &path,
+            "[sources]\nstatic = [\"a\", \"b\"]\ndiscovery_interval_ms = 300\n[model]\nmax_speed = 80.0\n",
+        )
+        .unwrap();
+        let p = path.to_str().unwrap();
+
+        let c = Config::from_cli(&cli(&["-c", p])).unwrap();
+        assert_eq!(c.sources.static_sources, vec!["a", "b"]);
+        assert_eq!(c.sources.discovery_interval_ms, 300);
+        assert_eq!(c.model.max_speed, 80.0);
+
+        let c = Config::from_cli(&cli(&[
+            "-c",
+            p,
+            "--source",
+            "x",
+            "--source",
+            "y",
+            "--discovery",
+            "false",
+            "--max-speed",
+            "70",
+            "--service-prefix",
+            "site1/ghnet",
+            "--stats-interval-s",
+            "0",
+            "--model",
+            "paper-s1",
+        ]))
+        .unwrap();
+        assert_eq!(c.sources.static_sources, vec!["x", "y"]);
+        assert!(!c.sources.discovery);
+        assert_eq!(c.sources.discovery_interval_ms, 300, "file value kept");
+        assert_eq!(c.model.max_speed, 70.0);
+        assert_eq!(c.model.name, "paper-s1");
+        assert_eq!(c.ipc.service_prefix, "site1/ghnet");
+        assert_eq!(c.stats_interval(), None);
+
+        // No file at all: defaults.
+        assert_eq!(Config::from_cli(&cli(&[])).unwrap(), Config::default());
+    }
+
+    #[test]
+    fn missing_file_error_names_the_file() {
+        let err = Config::from_cli(&cli(&["-c", "/nonexistent/ghnetd.toml"])).unwrap_err();
+        let msg = format!("{err:#}");
+        assert!(msg.contains("/nonexistent/ghnetd.toml"), "{msg}");
+        assert!(!msg.contains('\n'), "{msg}");
+    }
+
+    fn invalid(f: impl FnOnce(&mut Config)) -> String {
+        let mut c = Config::default();
+        f(&mut c);
+        let msg = format!("{:#}", c.validate().unwrap_err());
+        assert!(!msg.contains('\n'), "one line: {msg}");
+        msg
+    }
+
+    #[test]
+    fn validation_names_the_key() {
+        assert!(invalid(|c| c.ipc.service_prefix = "/x".into()).starts_with("ipc.service_prefix"));
+        assert!(invalid(|c| c.sources.static_sources = vec!["a/b".into()])
+            .starts_with("sources.static"));
+        assert!(
+            invalid(|c| c.sources.static_sources = vec!["a".into(), "a".into()]).contains("twice")
+        );
+        assert!(invalid(|c| c.sources.discovery_interval_ms = 0)
+            .starts_with("sources.discovery_interval_ms"));
+        assert!(invalid(|c| c.sources.max_sources = 0).starts_with("sources.max_sources"));
+        assert!(invalid(|c| {
+            c.sources.max_sources = 1;
+            c.sources.static_sources = vec!["a".into(), "b".into()];
+        })
+        .contains("max_sources"));
+        assert!(invalid(|c| c.model.max_speed = f64::NAN).starts_with("model.max_speed"));
+        assert!(invalid(|c| c.model.max_std_deg = -1.0).starts_with("model.max_std_deg"));
+        assert!(invalid(|c| c.model.stationary_speed = 200.0).starts_with("model.stationary_speed"));
+        assert!(invalid(|c| c.model.name = " ".into()).starts_with("model.name"));
+        assert!(invalid(|c| c.stats.interval_s = 100_000).starts_with("stats.interval_s"));
+        assert!(
+            invalid(|c| c.ipc.iceoryx2_root_path = Some("relative".into()))
+                .contains("iceoryx2_root_path")
+        );
+        assert!(
+            invalid(|c| c.ipc.iceoryx2_global_prefix = Some("a/b".into()))
+                .contains("iceoryx2_global_prefix")
+        );
+        Config::default().validate().unwrap();
+    }
+
+    #[test]
+    fn policy_matches_model_defaults() {
+        assert_eq!(
+            Config::default().status_policy(),
+            ghnet_models::StatusPolicy::default()
+        );
+    }
+}

@@ -1,0 +1,120 @@
+//! `ghnetd`: the ghnet heading sidecar as a library, so tests and other programs can
+//! run it in-process; the `ghnetd` binary is a thin shell around [`run`].
+//!
+//! # Layout
+//!
+//! - [`config`] — [`Config`] (TOML sections `ipc`, `sources`, `model`, `stats`) and
+//!   [`config::Cli`] (clap flags overriding it); validation with one-line errors that
+//!   name the key.
+//! - [`answer`] — per-sample logic without IPC: input checks, sequence and timestamp
+//!   bookkeeping ([`Counters`]), the model call, mapping to the wire status.
+//! - `serve` (private) — the event loop: one iceoryx2 node, one `WaitSet` with a
+//!   notification per source listener and one housekeeping interval (discovery,
+//!   publisher liveness, dead-node cleanup, stats line).
+//!
+//! # Behaviour
+//!
+//! Every [`VelocitySample`](ghnet_client::VelocitySample) taken from
+//! `<prefix>/<source>/velocity` is answered with exactly one
+//! [`HeadingEstimate`](ghnet_client::HeadingEstimate) on `<prefix>/<source>/heading`,
+//! invalid ones with status `InvalidInput` (never dropped silently). Sources come from
+//! `sources.static` and, with discovery on, from any velocity service that gets a
+//! publisher; a discovered source whose publishers are all gone is dropped. The
+//! per-sample path allocates nothing: ports and model scratch are made once per
+//! source / once per daemon.
+//!
+//! # Signals and shutdown
+//!
+//! The *embedding program* owns SIGINT/SIGTERM. `run` creates its iceoryx2 node and
+//! WaitSet with `SignalHandlingMode::Disabled`, so iceoryx2 never consumes a signal
+//! meant for the host program, and stops when the [`ShutdownFlag`] is set: within
+//! about 100 ms, after answering every sample already buffered, releasing all ports
+//! and the node. The `ghnetd` binary registers SIGINT/SIGTERM handlers (through
+//! iceoryx2's own signal module, so iceoryx2 cannot later overwrite them) that set the
+//! flag.
+//!
+//! ```no_run
+//! let config = ghnetd::Config::default(); // embedded ghnet-full model, discovery on
+//! let shutdown = ghnetd::ShutdownFlag::new();
+//! let stopper = shutdown.clone();
+//! std::thread::spawn(move || {
+//!     std::thread::sleep(std::time::Duration::from_secs(5));
+//!     stopper.request();
+//! });
+//! let stats = ghnetd::run(config, shutdown)?;
+//! println!("answered {}", stats.total().answered);
+//! # Ok::<(), anyhow::Error>(())
+//! ```
+
+#![warn(missing_docs)]
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use serde::Serialize;
+
+pub mod answer;
+pub mod config;
+mod serve;
+#[cfg(test)]
+mod test_model;
+
+pub use answer::Counters;
+pub use config::Config;
+
+/// Set once to stop [`run`]. Cheap to clone; setting it is async-signal-safe (a
+/// single atomic store), so a signal handler may call [`request`](Self::request).
+#[derive(Debug, Clone, Default)]
+pub struct ShutdownFlag(Arc<AtomicBool>);
+
+impl ShutdownFlag {
+    /// A flag that is not set.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Asks [`run`] to stop.
+    pub fn request(&self) {
+        self.0.store(true, Ordering::Release);
+    }
+
+    /// Whether a stop was requested.
+    pub fn is_requested(&self) -> bool {
+        self.0.load(Ordering::Acquire)
+    }
+}
+
+/// What [`run`] did, per source (including sources that were dropped on the way).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
+pub struct Stats {
+    /// Counters by source name.
+    pub sources: BTreeMap<String, Counters>,
+    /// Times a source was added (static at start, or discovered).
+    pub sources_added: u64,
+    /// Times a discovered source was dropped because its publishers were gone.
+    pub sources_removed: u64,
+}
+
+impl Stats {
+    /// Sum over all sources.
+    pub fn total(&self) -> Counters {
+        let mut t = Counters::default();
+        for c in self.sources.values() {
+            t.add(c);
+        }
+        t
+    }
+}
+
+/// Serves sources until `shutdown` is set; returns the counters.
+///
+/// Must run on one thread for its whole life (iceoryx2 `ipc::Service` ports are
+/// `!Send`). Errors: invalid config, model that cannot be loaded, iceoryx2 node or a
+/// static source's services that cannot be opened (e.g. created by a client with
+/// smaller limits, or another iceoryx2 version). A discovered source that cannot be
+/// opened is logged and skipped instead.
+pub fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stats> {
+    config.validate()?;
+    serve::run(config, shutdown)
+}

@@ -1,0 +1,74 @@
+//! `ghnetd` binary: layers the config, initialises tracing, turns SIGINT/SIGTERM into
+//! a shutdown request, and calls [`ghnetd::run`]. Everything else is in the library.
+
+use std::io::IsTerminal;
+use std::process::ExitCode;
+use std::sync::OnceLock;
+
+use clap::Parser;
+use ghnetd::config::Cli;
+use ghnetd::{Config, ShutdownFlag};
+use iceoryx2_bb_posix::signal::{FetchableSignal, SignalHandler};
+
+/// The flag the signal handler sets; a static because handlers take no context.
+static SHUTDOWN: OnceLock<ShutdownFlag> = OnceLock::new();
+
+fn on_signal(_: FetchableSignal) {
+    // Async-signal-safe: an atomic load and an atomic store.
+    if let Some(flag) = SHUTDOWN.get() {
+        flag.request();
+    }
+}
+
+fn main() -> ExitCode {
+    // iceoryx2 logs through its own multi-line console logger; ghnetd reports every
+    // failure that matters itself, so keep iceoryx2 to errors unless IOX2_LOG_LEVEL
+    // asks for more (e.g. IOX2_LOG_LEVEL=warn when debugging the transport).
+    ghnet_client::iceoryx2::prelude::set_log_level_from_env_or(
+        ghnet_client::iceoryx2::prelude::LogLevel::Error,
+    );
+    let cli = Cli::parse();
+    let config = match Config::from_cli(&cli) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            return ExitCode::FAILURE;
+        }
+    };
+    if cli.print_config {
+        print!("{}", config.to_toml());
+        return ExitCode::SUCCESS;
+    }
+
+    // Logs go to stderr (stdout stays clean for --print-config and pipes).
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .init();
+    // ghnetd owns the signals. Registering through iceoryx2's SignalHandler (not
+    // another crate) matters: iceoryx2 installs its own capturing handlers the first
+    // time its signal module is used, which would silently replace a foreign handler.
+    let shutdown = SHUTDOWN.get_or_init(ShutdownFlag::new).clone();
+    let _signal_guard = match SignalHandler::register_multiple_signals(
+        &vec![FetchableSignal::Interrupt, FetchableSignal::Terminate],
+        &on_signal,
+    ) {
+        Ok(g) => g,
+        Err(e) => {
+            eprintln!("error: cannot install SIGINT/SIGTERM handlers: {e:?}");
+            return ExitCode::FAILURE;
+        }
+    };
+
+    match ghnetd::run(config, shutdown) {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,434 @@
+//! The event loop: one iceoryx2 node, one WaitSet, one thread.
+//!
+//! Each served source owns four ports (velocity subscriber + listener, heading
+//! publisher + notifier), made once when the source is added. The WaitSet holds one
+//! notification attachment per source listener and one interval ("housekeeping") for
+//! discovery, liveness, dead-node cleanup and the stats line. Its guards borrow the
+//! ports, so the set of sources can only change between attachment scopes: when
+//! housekeeping finds a change, the scope ends, the change is applied, and the
+//! attachments are made again (rare, and nothing is lost: pending notifications stay
+//! in the listeners).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use ghnet_client::iceoryx2::prelude::*;
+use ghnet_client::iceoryx2::service::static_config::messaging_pattern::MessagingPattern as PatternConfig;
+use ghnet_client::{HeadingEstimate, HeadingPublisher, IpcConfig, VelocitySubscriber};
+use ghnet_models::{Model, Predictor};
+use tracing::{debug, info, warn};
+
+use crate::answer::{Counters, Limits, ModelTag, Tracker};
+use crate::config::Config;
+use crate::{ShutdownFlag, Stats};
+
+/// Longest the loop sleeps without looking at the shutdown flag. Signals interrupt
+/// the wait at once; this bounds the reaction to a flag set by another thread.
+const SHUTDOWN_POLL: Duration = Duration::from_millis(100);
+
+/// The ports of one source. Only shared borrows are needed to serve it, which is
+/// what lets the WaitSet guards borrow the listeners at the same time.
+struct Ports {
+    name: String,
+    is_static: bool,
+    velocity: VelocitySubscriber,
+    heading: HeadingPublisher,
+}
+
+/// Everything that changes while serving a source.
+struct State {
+    tracker: Tracker,
+}
+
+/// What a housekeeping pass wants changed.
+#[derive(Default)]
+struct Changes {
+    add: Vec<String>,
+    remove: Vec<usize>,
+}
+
+impl Changes {
+    fn is_empty(&self) -> bool {
+        self.add.is_empty() && self.remove.is_empty()
+    }
+}
+
+/// Loop state that is not borrowed by the WaitSet guards.
+struct Daemon {
+    config: Config,
+    ipc: IpcConfig,
+    iox_config: ghnet_client::iceoryx2::config::Config,
+    node: Node<ipc::Service>,
+    predictor: Predictor,
+    limits: Limits,
+    tag: ModelTag,
+    /// Counters of sources that were dropped, kept for the final stats and resumed
+    /// if the source comes back.
+    retired: BTreeMap<String, Counters>,
+    /// Discovered names that failed to open, so a broken service is reported once,
+    /// not every tick. Forgotten when the service disappears.
+    rejected: BTreeSet<String>,
+    /// Names over `max_sources`, reported once.
+    over_limit: BTreeSet<String>,
+    added: u64,
+    removed: u64,
+    next_stats: Option<Instant>,
+}
+
+pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stats> {
+    let ipc = config.ipc_config()?;
+    let iox_config = ipc.iceoryx2_config();
+    let model = Arc::new(
+        Model::from_name_or_path(&config.model.name)
+            .with_context(|| format!("model.name `{}`", config.model.name))?,
+    );
+    let tag = ModelTag {
+        id: model.id(),
+        name: HeadingEstimate::encode_model_name(model.name()),
+    };
+    let predictor = Predictor::new(model.clone()).with_policy(config.status_policy());
+
+    // Signals belong to the embedding program (ghnetd's main registers them and sets
+    // `shutdown`); iceoryx2 must not consume them.
+    let node = NodeBuilder::new()
+        .name(&NodeName::new("ghnetd").expect("valid node name"))
+        .config(&iox_config)
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .context("cannot create the iceoryx2 node (check permissions of /dev/shm and the iceoryx2 root path)")?;
+    // Node creation already cleans up after dead nodes (iceoryx2 default); this
+    // makes it explicit and visible after a kill -9.
+    let cleanup = node.try_cleanup_dead_nodes();
+    if cleanup.cleanups > 0 || cleanup.failed_cleanups > 0 {
+        info!(
+            cleaned = cleanup.cleanups,
+            failed = cleanup.failed_cleanups,
+            "removed stale iceoryx2 resources of dead processes"
+        );
+    }
+
+    info!(
+        prefix = %config.ipc.service_prefix,
+        model = %model.name(),
+        model_id = format_args!("{:#010x}", model.id()),
+        sources = ?config.sources.static_sources,
+        discovery = config.sources.discovery,
+        discovery_interval_ms = config.sources.discovery_interval_ms,
+        "ghnetd starting"
+    );
+
+    let mut d = Daemon {
+        limits: Limits {
+            max_speed: config.model.max_speed as f32,
+        },
+        next_stats: config.stats_interval().map(|i| Instant::now() + i),
+        config,
+        ipc,
+        iox_config,
+        node,
+        predictor,
+        tag,
+        retired: BTreeMap::new(),
+        rejected: BTreeSet::new(),
+        over_limit: BTreeSet::new(),
+        added: 0,
+        removed: 0,
+    };
+
+    let mut ports: Vec<Ports> = Vec::new();
+    let mut states: Vec<State> = Vec::new();
+    for name in d.config.sources.static_sources.clone() {
+        let p = d
+            .open_source(&name, true)
+            .with_context(|| format!("static source `{name}`"))?;
+        d.push_source(p, &mut ports, &mut states);
+    }
+
+    let waitset = WaitSetBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .context("cannot create the iceoryx2 WaitSet")?;
+    let housekeeping = d.config.discovery_interval();
+
+    'outer: loop {
+        let changes = {
+            let tick = waitset
+                .attach_interval(housekeeping)
+                .context("cannot attach the housekeeping interval")?;
+            let guards = ports
+                .iter()
+                .map(|p| waitset.attach_notification(p.velocity.listener()))
+                .collect::<Result<Vec<_>, _>>()
+                .context("cannot attach a source listener to the WaitSet")?;
+            // Samples that arrived before a listener was attached (or before it
+            // existed) have no pending wake-up; answer them now.
+            for (p, s) in ports.iter().zip(states.iter_mut()) {
+                serve(p, s, &mut d.predictor, &d.limits, &d.tag);
+            }
+            loop {
+                let mut tick_due = false;
+                let on_event = |id: WaitSetAttachmentId<ipc::Service>| {
+                    if id.has_event_from(&tick) {
+                        tick_due = true;
+                    } else if let Some(i) = guards.iter().position(|g| id.has_event_from(g)) {
+                        serve(
+                            &ports[i],
+                            &mut states[i],
+                            &mut d.predictor,
+                            &d.limits,
+                            &d.tag,
+                        );
+                    }
+                    CallbackProgression::Continue
+                };
+                waitset
+                    .wait_and_process_once_with_timeout(on_event, SHUTDOWN_POLL)
+                    .context("WaitSet failed")?;
+                if shutdown.is_requested() {
+                    break 'outer;
+                }
+                if tick_due {
+                    let changes = d.housekeeping(&ports, &states);
+                    if !changes.is_empty() {
+                        break changes;
+                    }
+                }
+            }
+        };
+        d.apply(changes, &mut ports, &mut states);
+    }
+
+    // Answer what is already buffered, then drop ports before the node (releasing
+    // the iceoryx2 resources in order).
+    info!("shutdown requested: answering buffered samples");
+    for (p, s) in ports.iter().zip(states.iter_mut()) {
+        serve(p, s, &mut d.predictor, &d.limits, &d.tag);
+    }
+    let stats = d.stats(&ports, &states);
+    d.log_stats(&ports, &states);
+    drop(ports);
+    drop(waitset);
+    info!(
+        sources_added = stats.sources_added,
+        sources_removed = stats.sources_removed,
+        received = stats.total().received,
+        answered = stats.total().answered,
+        "ghnetd stopped"
+    );
+    Ok(stats)
+}
+
+/// Drains one source: consume the wake-up notifications first (or the WaitSet fires
+/// again at once), then answer every buffered sample, then notify once for the
+/// whole batch. Allocates nothing.
+fn serve(
+    ports: &Ports,
+    state: &mut State,
+    predictor: &mut Predictor,
+    limits: &Limits,
+    tag: &ModelTag,
+) {
+    if let Err(e) = ports.velocity.drain_notifications() {
+        debug!(source = %ports.name, error = %e, "draining notifications failed");
+    }
+    let mut answered_any = false;
+    loop {
+        let sample = match ports.velocity.try_recv() {
+            Ok(Some(s)) => s,
+            Ok(None) => break,
+            Err(e) => {
+                warn!(source = %ports.name, error = %e, "receiving failed");
+                break;
+            }
+        };
+        let t0 = Instant::now();
+        let mut answer = state.tracker.answer(&sample, predictor, limits, tag);
+        answer.processing_ns = t0.elapsed().as_nanos() as u64;
+        match ports.heading.publish(answer) {
+            Ok(()) => {
+                state.tracker.counters.answered += 1;
+                answered_any = true;
+            }
+            Err(e) => {
+                state.tracker.counters.send_errors += 1;
+                // 1st, 2nd, 4th, 8th, ... failure: visible without flooding the log.
+                if state.tracker.counters.send_errors.is_power_of_two() {
+                    warn!(source = %ports.name, error = %e, failures = state.tracker.counters.send_errors, "cannot publish heading");
+                }
+            }
+        }
+    }
+    if answered_any {
+        if let Err(e) = ports.heading.notify() {
+            debug!(source = %ports.name, error = %e, "notify failed");
+        }
+    }
+}
+
+impl Daemon {
+    fn open_source(&self, name: &str, is_static: bool) -> anyhow::Result<Ports> {
+        let velocity = VelocitySubscriber::with_node(&self.node, &self.ipc, name)?;
+        let heading = HeadingPublisher::with_node(&self.node, &self.ipc, name)?;
+        Ok(Ports {
+            name: name.to_owned(),
+            is_static,
+            velocity,
+            heading,
+        })
+    }
+
+    fn push_source(&mut self, p: Ports, ports: &mut Vec<Ports>, states: &mut Vec<State>) {
+        let counters = self.retired.remove(&p.name).unwrap_or_default();
+        info!(
+            source = %p.name,
+            kind = if p.is_static { "static" } else { "discovered" },
+            velocity = %p.velocity.service_name(),
+            heading = %p.heading.service_name(),
+            "source added"
+        );
+        self.added += 1;
+        ports.push(p);
+        states.push(State {
+            tracker: Tracker::resume(counters),
+        });
+    }
+
+    /// Runs every `discovery_interval_ms`: cleans up after dead processes, finds
+    /// sources whose publishers are gone, discovers new ones, logs stats when due.
+    /// Reads only; the caller applies the changes outside the WaitSet scope.
+    fn housekeeping(&mut self, ports: &[Ports], states: &[State]) -> Changes {
+        let mut changes = Changes::default();
+
+        // A publisher killed with -9 stays registered until its node is cleaned up;
+        // afterwards the publisher count drops and a new publisher can take its slot.
+        let cleanup = self.node.try_cleanup_dead_nodes();
+        if cleanup.cleanups > 0 {
+            info!(
+                cleaned = cleanup.cleanups,
+                "removed stale iceoryx2 resources of dead processes"
+            );
+        }
+
+        for (i, p) in ports.iter().enumerate() {
+            if !p.is_static && p.velocity.publisher_count() == 0 {
+                changes.remove.push(i);
+            }
+        }
+
+        if self.config.sources.discovery {
+            let mut found = BTreeSet::new();
+            let ipc = &self.ipc;
+            let listed = ipc::Service::list(&self.iox_config, |details| {
+                if let PatternConfig::PublishSubscribe(_) =
+                    details.static_details.messaging_pattern()
+                {
+                    if let Some(src) =
+                        ipc.source_of_velocity_service(details.static_details.name().as_str())
+                    {
+                        found.insert(src.to_owned());
+                    }
+                }
+                CallbackProgression::Continue
+            });
+            if let Err(e) = listed {
+                warn!(error = %e, "cannot list iceoryx2 services; discovery skipped");
+            }
+            self.rejected.retain(|n| found.contains(n));
+            self.over_limit.retain(|n| found.contains(n));
+            let served = ports.len() - changes.remove.len();
+            for name in found {
+                if ports.iter().any(|p| p.name == name) || self.rejected.contains(&name) {
+                    continue;
+                }
+                if served + changes.add.len() >= self.config.sources.max_sources {
+                    if self.over_limit.insert(name.clone()) {
+                        warn!(source = %name, max_sources = self.config.sources.max_sources, "source ignored: sources.max_sources reached");
+                    }
+                    continue;
+                }
+                changes.add.push(name);
+            }
+        }
+
+        if let Some(next) = self.next_stats {
+            let now = Instant::now();
+            if now >= next {
+                self.log_stats(ports, states);
+                self.next_stats = self.config.stats_interval().map(|i| now + i);
+            }
+        }
+        changes
+    }
+
+    fn apply(&mut self, changes: Changes, ports: &mut Vec<Ports>, states: &mut Vec<State>) {
+        // Highest index first so swap_remove does not move an index still to come.
+        let mut remove = changes.remove;
+        remove.sort_unstable_by(|a, b| b.cmp(a));
+        for i in remove {
+            let p = ports.swap_remove(i);
+            let s = states.swap_remove(i);
+            let c = s.tracker.counters;
+            info!(
+                source = %p.name,
+                received = c.received,
+                answered = c.answered,
+                invalid = c.invalid,
+                "source removed: no publishers left"
+            );
+            self.retired.entry(p.name.clone()).or_default().add(&c);
+            self.removed += 1;
+        }
+        for name in changes.add {
+            match self.open_source(&name, false) {
+                // Only serve it if a publisher is really there: the service may be a
+                // leftover or still being set up; the next pass looks again.
+                Ok(p) if p.velocity.publisher_count() > 0 => self.push_source(p, ports, states),
+                Ok(_) => {
+                    debug!(source = %name, "velocity service without publishers; not served yet")
+                }
+                Err(e) => {
+                    warn!(source = %name, error = format_args!("{e:#}"), "cannot serve discovered source");
+                    self.rejected.insert(name);
+                }
+            }
+        }
+    }
+
+    fn stats(&self, ports: &[Ports], states: &[State]) -> Stats {
+        let mut sources = self.retired.clone();
+        for (p, s) in ports.iter().zip(states) {
+            sources
+                .entry(p.name.clone())
+                .or_default()
+                .add(&s.tracker.counters);
+        }
+        Stats {
+            sources,
+            sources_added: self.added,
+            sources_removed: self.removed,
+        }
+    }
+
+    fn log_stats(&self, ports: &[Ports], states: &[State]) {
+        if ports.is_empty() {
+            debug!("stats: no sources served");
+        }
+        for (p, s) in ports.iter().zip(states) {
+            let c = &s.tracker.counters;
+            info!(
+                source = %p.name,
+                received = c.received,
+                answered = c.answered,
+                invalid = c.invalid,
+                gaps = c.gaps,
+                duplicates = c.duplicates,
+                backwards = c.backwards,
+                send_errors = c.send_errors,
+                publishers = p.velocity.publisher_count(),
+                "stats"
+            );
+        }
+    }
+}
