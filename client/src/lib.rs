@@ -19,6 +19,8 @@
 //!   sleep instead of polling. Aliases: [`VelocityPublisher`], [`HeadingSubscriber`]
 //!   (the two a user needs) and [`VelocitySubscriber`], [`HeadingPublisher`] (the
 //!   daemon's side).
+//! - [`signals`] — [`termination_requested`]: Ctrl-C handling for programs using the
+//!   helpers (iceoryx2 captures SIGINT/SIGTERM once it is in use).
 //! - [`testing`] — [`testing::TestNamespace`], a private iceoryx2 namespace per test
 //!   that cleans up after itself.
 //!
@@ -50,6 +52,7 @@
 pub mod endpoint;
 pub mod names;
 pub mod settings;
+pub mod signals;
 pub mod testing;
 pub mod wire;
 
@@ -59,6 +62,7 @@ pub use endpoint::{
 };
 pub use names::{validate_source_name, IpcConfig, NameError, DEFAULT_PREFIX};
 pub use settings::{Message, ServiceSettings, SERVICE_SETTINGS};
+pub use signals::termination_requested;
 pub use wire::{flags, CodecError, HeadingEstimate, HeadingStatus, VelocitySample, MODEL_NAME_LEN};
 
 /// The iceoryx2 crate this wire is built on, re-exported so users (and the daemon)

@@ -180,7 +180,7 @@ mod tests {
     use std::sync::Arc;
 
     fn setup() -> (Predictor, Limits, ModelTag) {
-        let model = Arc::new(crate::test_model::untrained("unit-test"));
+        let model = Arc::new(crate::test_model::load());
         let tag = ModelTag {
             id: model.id(),
             name: HeadingEstimate::encode_model_name(model.name()),
@@ -188,8 +188,7 @@ mod tests {
         (Predictor::new(model), Limits { max_speed: 100.0 }, tag)
     }
 
-    /// A valid moving sample gets Ok or LowSpeed, depending on the (untrained)
-    /// model's σ.
+    /// A valid moving sample gets Ok or LowSpeed, depending on the model's σ.
     fn moving_ok(h: &HeadingEstimate) -> bool {
         matches!(
             h.heading_status(),
@@ -217,7 +216,7 @@ mod tests {
         assert!(h.heading_std_deg > 0.0);
         assert!((h.speed - 10.0).abs() < 1e-5);
         assert_eq!(h.model_id, tag.id);
-        assert_eq!(h.model_name_str(), "unit-test");
+        assert_eq!(h.model_name_str(), crate::test_model::TEST_MODEL);
         assert_eq!(t.counters.received, 1);
         assert_eq!(t.counters.invalid, 0);
     }

@@ -80,9 +80,11 @@ struct Daemon {
 pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stats> {
     let ipc = config.ipc_config()?;
     let iox_config = ipc.iceoryx2_config();
+    // Display only, not the source chain: ModelError's message already quotes its
+    // cause, and `{:#}` would print it twice.
     let model = Arc::new(
         Model::from_name_or_path(&config.model.name)
-            .with_context(|| format!("model.name `{}`", config.model.name))?,
+            .map_err(|e| anyhow::anyhow!("model.name `{}`: {e}", config.model.name))?,
     );
     let tag = ModelTag {
         id: model.id(),

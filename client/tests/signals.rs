@@ -1,0 +1,77 @@
+//! Ctrl-C with the helpers: iceoryx2 captures SIGINT once a Sender exists, so a
+//! publisher loop must poll `termination_requested()`. Runs the publisher as a child
+//! process (signals in the test process would hit every test).
+
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use ghnet_client::testing::TestNamespace;
+use ghnet_client::{IpcConfig, VelocityPublisher, VelocitySample};
+
+const CHILD_ENV: &str = "GHNET_CLIENT_SIGNAL_CHILD";
+
+#[test]
+#[ignore = "spawned as a child process by sigint_stops_a_polling_publisher"]
+fn child_polling_publisher() {
+    let Ok(spec) = std::env::var(CHILD_ENV) else {
+        return;
+    };
+    let (prefix, root) = spec.split_once('|').unwrap();
+    let gnss = VelocityPublisher::new(&IpcConfig::isolated(prefix, root).unwrap(), "sig").unwrap();
+    println!("ready");
+    let mut seq = 0;
+    while !ghnet_client::termination_requested() {
+        gnss.send(VelocitySample::new(0, seq, 1.0, 0.0, 0.0))
+            .unwrap();
+        seq += 1;
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    println!("stopped cleanly");
+}
+
+#[test]
+fn sigint_stops_a_polling_publisher() {
+    let ns = TestNamespace::new("sig");
+    let mut child = Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--exact",
+            "child_polling_publisher",
+            "--ignored",
+            "--nocapture",
+        ])
+        .env(
+            CHILD_ENV,
+            format!("{}|{}", ns.global_prefix(), ns.root_path().display()),
+        )
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Wait for the publisher's service to exist, then interrupt it.
+    let sub = ghnet_client::VelocitySubscriber::new(&ns.ipc(), "sig").unwrap();
+    let t0 = Instant::now();
+    while sub.publisher_count() == 0 {
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "child never started"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t0.elapsed() > Duration::from_secs(20) {
+            let _ = child.kill();
+            let _ = child.wait(); // reap
+            panic!("publisher ignored SIGINT");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let mut stdout = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut stdout).unwrap();
+    assert!(status.success(), "{status:?}");
+    assert!(stdout.contains("stopped cleanly"), "{stdout}");
+}
