@@ -8,6 +8,8 @@
 //!   name the key.
 //! - [`answer`] — per-sample logic without IPC: input checks, sequence and timestamp
 //!   bookkeeping ([`Counters`]), the model call, mapping to the wire status.
+//! - `output` (private) — `HeadingOutput`, one destination of a source's answers
+//!   (iceoryx2 today; the Zenoh output slots in as a second one).
 //! - `serve` (private) — the event loop: one iceoryx2 node, one `WaitSet` with a
 //!   notification per source listener and one housekeeping interval (discovery,
 //!   publisher liveness, dead-node cleanup, stats line).
@@ -56,6 +58,7 @@ use serde::Serialize;
 
 pub mod answer;
 pub mod config;
+mod output;
 mod serve;
 #[cfg(test)]
 mod test_model;

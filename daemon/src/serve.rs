@@ -1,7 +1,7 @@
 //! The event loop: one iceoryx2 node, one WaitSet, one thread.
 //!
-//! Each served source owns four ports (velocity subscriber + listener, heading
-//! publisher + notifier), made once when the source is added. The WaitSet holds one
+//! Each served source owns its ports (velocity subscriber + listener, and per output
+//! the heading publisher + notifier), made once when the source is added. The WaitSet holds one
 //! notification attachment per source listener and one interval ("housekeeping") for
 //! discovery, liveness, dead-node cleanup and the stats line. Its guards borrow the
 //! ports, so the set of sources can only change between attachment scopes: when
@@ -22,6 +22,7 @@ use tracing::{debug, info, warn};
 
 use crate::answer::{Counters, Limits, ModelTag, Tracker};
 use crate::config::Config;
+use crate::output::HeadingOutput;
 use crate::{ShutdownFlag, Stats};
 
 /// Longest the loop sleeps without looking at the shutdown flag. Signals interrupt
@@ -34,7 +35,11 @@ struct Ports {
     name: String,
     is_static: bool,
     velocity: VelocitySubscriber,
-    heading: HeadingPublisher,
+    /// Full name of the iceoryx2 heading service, for logs.
+    heading_service: String,
+    /// Every destination of this source's answers; the iceoryx2 heading service
+    /// first. Boxed once per source, so per sample only a virtual call.
+    outputs: Vec<Box<dyn HeadingOutput>>,
 }
 
 /// Everything that changes while serving a source.
@@ -248,23 +253,29 @@ fn serve(
         let t0 = Instant::now();
         let mut answer = state.tracker.answer(&sample, predictor, limits, tag);
         answer.processing_ns = t0.elapsed().as_nanos() as u64;
-        match ports.heading.publish(answer) {
-            Ok(()) => {
-                state.tracker.counters.answered += 1;
-                answered_any = true;
-            }
-            Err(e) => {
-                state.tracker.counters.send_errors += 1;
+        let mut delivered = true;
+        for out in &ports.outputs {
+            if let Err(e) = out.publish(&answer) {
+                delivered = false;
                 // 1st, 2nd, 4th, 8th, ... failure: visible without flooding the log.
-                if state.tracker.counters.send_errors.is_power_of_two() {
-                    warn!(source = %ports.name, error = %e, failures = state.tracker.counters.send_errors, "cannot publish heading");
+                let n = state.tracker.counters.send_errors + 1;
+                if n.is_power_of_two() {
+                    warn!(source = %ports.name, output = out.kind(), error = %e, failures = n, "cannot publish heading");
                 }
             }
         }
+        if delivered {
+            state.tracker.counters.answered += 1;
+            answered_any = true;
+        } else {
+            state.tracker.counters.send_errors += 1;
+        }
     }
     if answered_any {
-        if let Err(e) = ports.heading.notify() {
-            debug!(source = %ports.name, error = %e, "notify failed");
+        for out in &ports.outputs {
+            if let Err(e) = out.flush() {
+                debug!(source = %ports.name, output = out.kind(), error = %e, "flush failed");
+            }
         }
     }
 }
@@ -277,7 +288,8 @@ impl Daemon {
             name: name.to_owned(),
             is_static,
             velocity,
-            heading,
+            heading_service: heading.service_name().to_owned(),
+            outputs: vec![Box::new(heading)],
         })
     }
 
@@ -287,7 +299,7 @@ impl Daemon {
             source = %p.name,
             kind = if p.is_static { "static" } else { "discovered" },
             velocity = %p.velocity.service_name(),
-            heading = %p.heading.service_name(),
+            heading = %p.heading_service,
             "source added"
         );
         self.added += 1;

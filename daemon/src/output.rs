@@ -1,0 +1,45 @@
+//! Where answers go. Today one output per source, the iceoryx2 heading service; the
+//! planned Zenoh output (`<prefix>/<source>/heading` key expression, see
+//! `IpcConfig::zenoh_heading_key`) is a second [`HeadingOutput`] made in
+//! `Daemon::open_source` and pushed onto the source's output list — the event loop
+//! does not change.
+
+use ghnet_client::{HeadingEstimate, HeadingPublisher, SendError};
+
+/// One destination for a source's answers. Created once per source; `publish` runs
+/// on the per-sample path and must not allocate on success.
+pub(crate) trait HeadingOutput {
+    /// Short name for logs, e.g. `iceoryx2`.
+    fn kind(&self) -> &'static str;
+    /// Delivers one answer.
+    fn publish(&self, answer: &HeadingEstimate) -> Result<(), OutputError>;
+    /// Called once after a batch of answers (one wake-up's worth), e.g. to wake
+    /// listeners once instead of per answer.
+    fn flush(&self) -> Result<(), OutputError>;
+}
+
+/// An output failed; the message is for the log.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub(crate) struct OutputError(#[from] Box<dyn std::error::Error + Send + Sync>);
+
+impl From<SendError> for OutputError {
+    fn from(e: SendError) -> Self {
+        Self(Box::new(e))
+    }
+}
+
+/// The iceoryx2 heading service: shared-memory publish, one notify per batch.
+impl HeadingOutput for HeadingPublisher {
+    fn kind(&self) -> &'static str {
+        "iceoryx2"
+    }
+
+    fn publish(&self, answer: &HeadingEstimate) -> Result<(), OutputError> {
+        Ok(HeadingPublisher::publish(self, *answer)?)
+    }
+
+    fn flush(&self) -> Result<(), OutputError> {
+        Ok(self.notify()?)
+    }
+}
