@@ -1,0 +1,14 @@
+//! Cross-process tests of ghnet: the real `ghnetd` binary (found by
+//! `ghnet_tests::ghnetd_binary`; build it with `cargo build -p ghnetd` or run
+//! `cargo test --workspace`), real iceoryx2 shared memory, each test in its own
+//! namespace. One binary, one module per topic.
+
+mod config;
+mod crash;
+mod discovery;
+mod echo;
+mod invalid;
+mod shutdown;
+
+/// Path of the helper publisher binary of this package.
+pub const TEST_PUBLISHER: &str = env!("CARGO_BIN_EXE_ghnet-test-publisher");
