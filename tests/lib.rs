@@ -338,8 +338,9 @@ impl Daemon {
     /// win). Returns at once; wait for readiness with [`wait_serving`] or
     /// [`wait_for_log`](Self::wait_for_log).
     pub fn start(ns: &Namespace, extra: &[&str]) -> Self {
+        // Named like a namespace root, so a sweep after a crashed run removes it too.
         let dir = tempfile::Builder::new()
-            .prefix("ghnet-it-daemon-")
+            .prefix(&format!("ghnet-it-{TAG}{}xlog", std::process::id()))
             .tempdir()
             .expect("temp dir");
         let log = dir.path().join("ghnetd.log");
