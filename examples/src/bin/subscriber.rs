@@ -1,9 +1,10 @@
 //! `subscriber`: prints the headings ghnetd publishes for one source as a live table.
 //!
 //! Teaches: `HeadingSubscriber::recv_timeout` sleeps on the paired event service
-//! (no busy polling), every heading echoes its sample's `seq` and `timestamp_ns`
-//! (so latency = receipt − timestamp), and the `status` decides whether the heading
-//! may be used.
+//! (no busy polling) and wakes at least once a second, so the loop can check
+//! `termination_requested()` (iceoryx2 captures Ctrl-C); every heading echoes its
+//! sample's `seq` and `timestamp_ns` (so latency = receipt − timestamp), and the
+//! `status` decides whether the heading may be used.
 //!
 //! Run (with `ghnetd` and `publisher` in other terminals, see examples/README.md):
 //!
@@ -15,7 +16,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
-use ghnet_client::{HeadingSubscriber, RecvError};
+use ghnet_client::{termination_requested, HeadingSubscriber, RecvError};
 use ghnet_examples::{latency_since, table, CommonArgs};
 
 /// Prints `<prefix>/<source>/heading` as a table until Ctrl-C (or `--count`).
@@ -49,7 +50,8 @@ fn run(args: Args) -> anyhow::Result<()> {
 
     let mut received = 0u64;
     let mut quiet = false; // report a silence once, not every second
-    while args.count == 0 || received < args.count {
+                           // iceoryx2 captures Ctrl-C once its ports exist; ask for it between waits.
+    while (args.count == 0 || received < args.count) && !termination_requested() {
         match headings.recv_timeout(Duration::from_secs(1)) {
             Ok(Some(h)) => {
                 println!("{}", table::row(&h, latency_since(h.timestamp_ns)));
