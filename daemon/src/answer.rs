@@ -105,7 +105,9 @@ impl Tracker {
             self.counters.backwards += 1;
             None
         } else if input_ok(s, limits) {
-            Some(predictor.predict(s.v_north, s.v_east))
+            // The receiver's speed accuracy (NaN when unknown) lets full-circle models
+            // report this receiver's σ rather than an average receiver's.
+            Some(predictor.predict_with_accuracy(s.v_north, s.v_east, s.speed_accuracy))
         } else {
             None
         };

@@ -624,6 +624,62 @@ fn metric_table(
     out.push('\n');
 }
 
+/// A compact Markdown table for one estimator: per bin (only bins with at least
+/// `min_count` samples, plus the summary and overall rows) its MAE beside every other
+/// estimator's, its improvement over atan2, its gap to the Bayes limit when present, and
+/// its σ calibration. This is what the models' README shows; the full report has the rest.
+pub fn to_markdown_compact(r: &Report, estimator: &str, min_count: usize) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let mut header = vec!["Speed [m/s]".to_owned(), "N".to_owned()];
+    for n in &r.estimators {
+        header.push(format!("MAE {n}"));
+    }
+    header.push(format!("{estimator} vs {} [%]", r.config.atan2));
+    let has_bayes = r.estimators.contains(&r.config.bayes);
+    if has_bayes {
+        header.push(format!("gap to {} [%]", r.config.bayes));
+    }
+    header.push("≤1σ [%]".into());
+    header.push("≤2σ [%]".into());
+    let _ = writeln!(out, "| {} |", header.join(" | "));
+    let _ = writeln!(out, "|{}", "---:|".repeat(header.len()));
+    for (bold, row) in all_rows(r) {
+        if !bold && row.count < min_count {
+            continue;
+        }
+        let label = if bold {
+            format!("**{}**", row.label)
+        } else {
+            row.label.clone()
+        };
+        let mut cells = vec![label, row.count.to_string()];
+        for s in &row.stats {
+            cells.push(format!("{:.2}", s.mae_deg));
+        }
+        let pct = |reference: &str| {
+            row.comparison(estimator, reference)
+                .and_then(|c| c.mae_pct)
+                .map_or("–".to_owned(), |v| format!("{v:.1}"))
+        };
+        cells.push(pct(&r.config.atan2));
+        if has_bayes {
+            cells.push(pct(&r.config.bayes));
+        }
+        let s = row.stats_of(estimator);
+        cells.push(fmt_opt(
+            s.and_then(|s| s.within_1sigma).map(|x| 100.0 * x),
+            1,
+        ));
+        cells.push(fmt_opt(
+            s.and_then(|s| s.within_2sigma).map(|x| 100.0 * x),
+            1,
+        ));
+        let _ = writeln!(out, "| {} |", cells.join(" | "));
+    }
+    out
+}
+
 /// Renders the report as Markdown: MAE, RMSE and absolute-error std tables per speed
 /// bin with summary rows, and a σ calibration table when an estimator reports σ.
 pub fn to_markdown(r: &Report) -> String {

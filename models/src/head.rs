@@ -50,8 +50,27 @@ pub enum Head {
         /// Half the width of the trained heading range, degrees.
         half_range_deg: f32,
     },
-    /// `ψ = atan2(v_E, v_N) + atan2(y₁, y₀)`, `log σ = y₂`.
-    Residual,
+    /// Shrinkage toward a learned in-range angle, for a restricted heading range:
+    /// `θ = centre + half_range·y₀`, `w = sigmoid(y₁)`, `ψ = A + w·wrap(θ − A)` with
+    /// `A = atan2(v_E, v_N)`, `log σ = y₂`; the result is clamped to the range.
+    /// At speed the network drives `w → 0` and keeps atan2's full precision; near
+    /// standstill `w → 1` and the heading comes from the prior, which is what the
+    /// Bayes-optimal estimate does for a known range.
+    Blend {
+        /// Centre of the trained heading range, degrees.
+        centre_deg: f32,
+        /// Half the width of the trained heading range, degrees.
+        half_range_deg: f32,
+    },
+    /// `ψ = atan2(v_E, v_N) + sigmoid(y₂)·atan2(y₁, y₀)`, `log σ = y₃`; the gate lets the
+    /// network switch its correction off exactly where atan2 cannot be improved (at
+    /// speed, a rotation that is merely small still costs precision). A heading outside
+    /// `range_deg` (when it is narrower than the circle) is moved to the nearer end, which
+    /// can only reduce the error for a vehicle whose heading is known to lie in the range.
+    Residual {
+        /// Trained heading range `[lo, hi]`, degrees; `[0, 360]` for the full circle.
+        range_deg: [f32; 2],
+    },
 }
 
 /// Wrap radians to (−π, π].
@@ -77,12 +96,34 @@ pub fn heading_deg(v_north: f32, v_east: f32) -> f32 {
     }
 }
 
+#[inline]
+fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+/// Move a heading (degrees, [0, 360)) outside the arc `[lo, hi]` to the nearer end.
+#[inline]
+pub fn clamp_to_arc(deg: f32, lo: f32, hi: f32) -> f32 {
+    let from_lo = (deg - lo).rem_euclid(360.0);
+    if from_lo <= hi - lo {
+        return deg;
+    }
+    let past_hi = from_lo - (hi - lo);
+    let before_lo = 360.0 - from_lo;
+    if past_hi <= before_lo {
+        hi.rem_euclid(360.0)
+    } else {
+        lo.rem_euclid(360.0)
+    }
+}
+
 impl Head {
     /// Number of network outputs this head reads.
     pub fn outputs(&self) -> usize {
         match self {
             Head::Angle { .. } => 2,
-            Head::Residual => 3,
+            Head::Blend { .. } => 3,
+            Head::Residual { .. } => 4,
         }
     }
 
@@ -93,7 +134,11 @@ impl Head {
                 centre_deg,
                 half_range_deg,
             } => (centre_deg - half_range_deg, centre_deg + half_range_deg),
-            Head::Residual => (0.0, 360.0),
+            Head::Blend {
+                centre_deg,
+                half_range_deg,
+            } => (centre_deg - half_range_deg, centre_deg + half_range_deg),
+            Head::Residual { range_deg } => (range_deg[0], range_deg[1]),
         }
     }
 
@@ -105,15 +150,38 @@ impl Head {
                 centre_deg,
                 half_range_deg,
             } => ((centre_deg + half_range_deg * y[0]).to_radians(), y[1]),
-            Head::Residual => (v_east.atan2(v_north) + y[1].atan2(y[0]), y[2]),
+            Head::Residual { .. } => (
+                v_east.atan2(v_north) + sigmoid(y[2]) * y[1].atan2(y[0]),
+                y[3],
+            ),
+            Head::Blend {
+                centre_deg,
+                half_range_deg,
+            } => {
+                let a = v_east.atan2(v_north);
+                let theta = (centre_deg + half_range_deg * y[0]).to_radians();
+                let w = sigmoid(y[1]);
+                (a + w * wrap_rad(theta - a), y[2])
+            }
         }
+    }
+
+    /// Whether σ should come from the receiver's speed accuracy when it reports one:
+    /// only for the full circle, where the heading is atan2 plus a small correction and
+    /// its error is the receiver's velocity noise over the speed.
+    pub fn uses_speed_accuracy(&self) -> bool {
+        matches!(*self, Head::Residual { range_deg } if range_deg[1] - range_deg[0] >= 360.0)
     }
 
     /// Heading (degrees, [0, 360)) and standard deviation (degrees) from outputs `y`.
     #[inline]
     pub fn decode(&self, y: &[f32], v_north: f32, v_east: f32, sigma_scale: f32) -> (f32, f32) {
         let (psi, log_sigma) = self.raw(y, v_north, v_east);
-        let deg = psi.to_degrees().rem_euclid(360.0);
+        let mut deg = psi.to_degrees().rem_euclid(360.0);
+        let (lo, hi) = self.range_deg();
+        if hi - lo < 360.0 {
+            deg = clamp_to_arc(deg, lo, hi);
+        }
         let deg = if deg >= 360.0 { 0.0 } else { deg };
         let sigma = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX).exp() * sigma_scale;
         (deg, sigma.to_degrees().min(MAX_STD_DEG))
@@ -155,14 +223,27 @@ impl Head {
                 dy[0] = sign * half_range_deg.to_radians();
                 dy[1] = ds;
             }
-            Head::Residual => {
+            Head::Blend {
+                centre_deg,
+                half_range_deg,
+            } => {
+                let a = v_east.atan2(v_north);
+                let d = wrap_rad((centre_deg + half_range_deg * y[0]).to_radians() - a);
+                let w = sigmoid(y[1]);
+                dy[0] = sign * w * half_range_deg.to_radians();
+                dy[1] = sign * d * w * (1.0 - w);
+                dy[2] = ds;
+            }
+            Head::Residual { .. } => {
                 let (c, sn) = (y[0], y[1]);
                 let r2 = (c * c + sn * sn).max(1e-12);
                 let pen = r2 - 1.0;
+                let w = sigmoid(y[2]);
                 loss += NORM_PENALTY * pen * pen;
-                dy[0] = sign * (-sn / r2) + NORM_PENALTY * 4.0 * pen * c;
-                dy[1] = sign * (c / r2) + NORM_PENALTY * 4.0 * pen * sn;
-                dy[2] = ds;
+                dy[0] = sign * w * (-sn / r2) + NORM_PENALTY * 4.0 * pen * c;
+                dy[1] = sign * w * (c / r2) + NORM_PENALTY * 4.0 * pen * sn;
+                dy[2] = sign * sn.atan2(c) * w * (1.0 - w);
+                dy[3] = ds;
             }
         }
         (loss, e, s.exp())
@@ -173,7 +254,8 @@ impl Head {
     pub fn initial_bias(&self) -> Vec<f32> {
         match self {
             Head::Angle { .. } => vec![0.0, 0.0],
-            Head::Residual => vec![1.0, 0.0, 0.0],
+            Head::Residual { .. } => vec![1.0, 0.0, 0.0, 0.0],
+            Head::Blend { .. } => vec![0.0, 0.0, 0.0],
         }
     }
 }
@@ -203,12 +285,17 @@ mod tests {
         let (deg, std) = h.decode(&[0.5, (0.01f32).ln()], 1.0, 1.0, 1.0);
         assert!((deg - 67.5).abs() < 1e-4);
         assert!((std - 0.01f32.to_degrees()).abs() < 1e-4);
-        let r = Head::Residual;
-        // Δ = atan2(1, 1) = 45° on top of atan2 heading 90°.
-        let (deg, _) = r.decode(&[1.0, 1.0, 0.0], 0.0, 2.0, 1.0);
-        assert!((deg - 135.0).abs() < 1e-4);
+        let r = Head::Residual {
+            range_deg: [0.0, 360.0],
+        };
+        // Δ = atan2(1, 1) = 45° with an open gate on top of atan2 heading 90°.
+        let (deg, _) = r.decode(&[1.0, 1.0, 30.0, 0.0], 0.0, 2.0, 1.0);
+        assert!((deg - 135.0).abs() < 1e-3);
+        // Half-open gate: half the rotation.
+        let (deg, _) = r.decode(&[1.0, 1.0, 0.0, 0.0], 0.0, 2.0, 1.0);
+        assert!((deg - 112.5).abs() < 1e-3);
         // σ is capped at the uniform-circle value.
-        let (_, std) = r.decode(&[1.0, 0.0, 3.0], 0.0, 2.0, 10.0);
+        let (_, std) = r.decode(&[1.0, 0.0, 0.0, 3.0], 0.0, 2.0, 10.0);
         assert_eq!(std, MAX_STD_DEG);
     }
 
@@ -245,7 +332,31 @@ mod tests {
         };
         check_loss_grad(angle, &[0.3, -1.2], 1.0, 0.5, 20.0);
         check_loss_grad(angle, &[-0.7, 0.4], 0.1, 0.2, 80.0);
-        check_loss_grad(Head::Residual, &[0.9, 0.2, -0.5], 1.0, 0.5, 10.0);
-        check_loss_grad(Head::Residual, &[1.3, -0.4, 0.7], -1.0, -0.5, 300.0);
+        let r = Head::Residual {
+            range_deg: [0.0, 360.0],
+        };
+        check_loss_grad(r, &[0.9, 0.2, 0.3, -0.5], 1.0, 0.5, 10.0);
+        check_loss_grad(r, &[1.3, -0.4, -0.8, 0.7], -1.0, -0.5, 300.0);
+        let b = Head::Blend {
+            centre_deg: 45.0,
+            half_range_deg: 45.0,
+        };
+        check_loss_grad(b, &[0.2, 0.3, -0.5], 1.0, 0.5, 60.0);
+        check_loss_grad(b, &[-0.6, -1.1, 0.4], -0.1, 0.05, 10.0);
+    }
+
+    #[test]
+    fn restricted_residual_head_clamps_to_its_range() {
+        assert_eq!(clamp_to_arc(45.0, 0.0, 90.0), 45.0);
+        assert_eq!(clamp_to_arc(100.0, 0.0, 90.0), 90.0);
+        assert_eq!(clamp_to_arc(350.0, 0.0, 90.0), 0.0);
+        assert_eq!(clamp_to_arc(224.0, 0.0, 90.0), 90.0);
+        assert_eq!(clamp_to_arc(226.0, 0.0, 90.0), 0.0);
+        assert_eq!(clamp_to_arc(5.0, 350.0, 370.0), 5.0);
+        let r = Head::Residual {
+            range_deg: [0.0, 90.0],
+        };
+        let (deg, _) = r.decode(&[1.0, 0.0, 0.0, 0.0], -1.0, -1.2, 1.0); // atan2 = 230.2°
+        assert_eq!(deg, 0.0);
     }
 }

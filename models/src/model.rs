@@ -8,10 +8,10 @@ use std::sync::Arc;
 
 use faer::Mat;
 
-use crate::head::{heading_deg, Head};
+use crate::head::{heading_deg, Head, MAX_STD_DEG};
 use crate::net::{Network, Scratch};
 use crate::params::ParamSet;
-use crate::train::scale_input;
+use crate::train::{accuracy_sigma_base, scale_input};
 use crate::weights::{self, ModelMeta, WeightsError};
 
 /// The models compiled into every binary, by name. `ghnet-full` is the default.
@@ -36,13 +36,14 @@ pub enum ModelError {
     #[error("unknown model `{0}`: not a built-in model (ghnet-full, paper-s1) and no such file")]
     Unknown(String),
     /// The file or embedded bytes are malformed.
-    #[error("model `{name}`: {source}")]
+    /// (The cause is part of the message and deliberately not a `source()`, so a
+    /// `{:#}` chain prints it once.)
+    #[error("model `{name}`: {cause}")]
     Weights {
         /// Name or path.
         name: String,
         /// What is wrong.
-        #[source]
-        source: WeightsError,
+        cause: WeightsError,
     },
 }
 
@@ -88,18 +89,18 @@ impl Model {
 
     /// Parse safetensors bytes; `name` is only used in errors.
     pub fn from_bytes(name: &str, bytes: &[u8]) -> Result<Self, ModelError> {
-        let (params, meta) = weights::from_bytes(bytes).map_err(|source| ModelError::Weights {
+        let (params, meta) = weights::from_bytes(bytes).map_err(|cause| ModelError::Weights {
             name: name.into(),
-            source,
+            cause,
         })?;
         Ok(Self::new(params, meta))
     }
 
     /// Load a safetensors file.
     pub fn load(path: &Path) -> Result<Self, ModelError> {
-        let (params, meta) = weights::read(path).map_err(|source| ModelError::Weights {
+        let (params, meta) = weights::read(path).map_err(|cause| ModelError::Weights {
             name: path.display().to_string(),
-            source,
+            cause,
         })?;
         Ok(Self::new(params, meta))
     }
@@ -281,12 +282,19 @@ impl Predictor {
     }
 
     #[inline]
-    fn finish(&self, y: &[f32], v_north: f32, v_east: f32, speed: f32) -> Prediction {
+    fn finish(&self, y: &[f32], v_north: f32, v_east: f32, speed: f32, acc: f32) -> Prediction {
         let meta = self.model.meta();
-        let (heading, std) = meta.head.decode(y, v_north, v_east, meta.sigma_scale);
+        let (heading, mut std) = meta.head.decode(y, v_north, v_east, meta.sigma_scale);
+        if meta.accuracy_sigma_scale.is_finite() {
+            if let Some(base) = accuracy_sigma_base(v_north, v_east, acc) {
+                std = (meta.accuracy_sigma_scale * base)
+                    .to_degrees()
+                    .min(MAX_STD_DEG);
+            }
+        }
         let status = if speed < self.policy.stationary_speed {
             Status::Stationary
-        } else if !(std <= self.policy.max_std_deg) {
+        } else if std.is_nan() || std > self.policy.max_std_deg {
             Status::LowSpeed
         } else {
             Status::Ok
@@ -300,8 +308,21 @@ impl Predictor {
         }
     }
 
-    /// One sample. Never panics: bad input gives [`Status::Invalid`].
+    /// One sample. Never panics: bad input gives [`Status::Invalid`]. σ is the network's.
     pub fn predict(&mut self, v_north: f32, v_east: f32) -> Prediction {
+        self.predict_with_accuracy(v_north, v_east, f32::NAN)
+    }
+
+    /// One sample with the receiver's speed accuracy (1σ, m/s; NaN or negative when
+    /// unknown). For full-circle models σ then follows the receiver's own noise
+    /// (`k·sAcc/speed`), which one velocity sample cannot reveal; otherwise as
+    /// [`Predictor::predict`].
+    pub fn predict_with_accuracy(
+        &mut self,
+        v_north: f32,
+        v_east: f32,
+        speed_acc: f32,
+    ) -> Prediction {
         let Some(speed) = self.validate(v_north, v_east) else {
             return Prediction {
                 speed: v_north.hypot(v_east),
@@ -313,7 +334,7 @@ impl Predictor {
         self.model
             .network()
             .forward_one(&x, &mut out, &mut self.scratch);
-        let p = self.finish(&out, v_north, v_east, speed);
+        let p = self.finish(&out, v_north, v_east, speed, speed_acc);
         self.out = out;
         p
     }
@@ -321,6 +342,33 @@ impl Predictor {
     /// Many samples through the batch path; `out[i]` answers `(v_north[i], v_east[i])`.
     /// Invalid inputs are fed to the network as zeros and answered as invalid.
     pub fn predict_batch(&mut self, v_north: &[f32], v_east: &[f32], out: &mut [Prediction]) {
+        self.batch(v_north, v_east, None, out)
+    }
+
+    /// [`Predictor::predict_batch`] with each sample's speed accuracy (see
+    /// [`Predictor::predict_with_accuracy`]).
+    pub fn predict_batch_with_accuracy(
+        &mut self,
+        v_north: &[f32],
+        v_east: &[f32],
+        speed_acc: &[f32],
+        out: &mut [Prediction],
+    ) {
+        assert_eq!(
+            speed_acc.len(),
+            out.len(),
+            "predict_batch: slices must have equal length"
+        );
+        self.batch(v_north, v_east, Some(speed_acc), out)
+    }
+
+    fn batch(
+        &mut self,
+        v_north: &[f32],
+        v_east: &[f32],
+        speed_acc: Option<&[f32]>,
+        out: &mut [Prediction],
+    ) {
         assert!(
             v_north.len() == v_east.len() && v_east.len() == out.len(),
             "predict_batch: slices must have equal length"
@@ -353,7 +401,8 @@ impl Predictor {
                         for (kk, yk) in y.iter_mut().enumerate().take(k) {
                             *yk = self.yb[(kk, j)];
                         }
-                        self.finish(&y[..k], vn, ve, speed)
+                        let acc = speed_acc.map_or(f32::NAN, |a| a[start + j]);
+                        self.finish(&y[..k], vn, ve, speed, acc)
                     }
                     None => Prediction {
                         speed: vn.hypot(ve),

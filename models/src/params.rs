@@ -294,3 +294,43 @@ impl ParamSet {
         self.arch.trainable_parameters()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The count models/README.md states, and why the paper's 70,709 is not reproducible.
+    #[test]
+    fn parameter_counts() {
+        // Table I with one output, input read as 2 channels × length 1 (PyTorch counting).
+        assert_eq!(Arch::paper(1).trainable_parameters(), 38_291);
+        // Our heads: blend has 3 outputs, residual 4 (a row is 5 weights + 1 bias).
+        assert_eq!(Arch::paper(3).trainable_parameters(), 38_303);
+        assert_eq!(Arch::paper(4).trainable_parameters(), 38_309);
+        // Batch-norm running statistics are buffers, not parameters: 2 × 408.
+        let buffers: usize = Arch::paper(1)
+            .tensor_specs()
+            .iter()
+            .filter(|s| s.role == Role::Buffer)
+            .map(|s| s.len())
+            .sum();
+        assert_eq!(buffers, 816);
+        // Reading the input as 1 channel × length 2 instead: conv1 has 24·1 weights and the
+        // flatten gives 96 features, so fc1 has 96·60 weights.
+        let alt = 38_291 - (24 * 2) + 24 - (48 * 60) + (96 * 60);
+        assert_eq!(alt, 41_147);
+    }
+
+    #[test]
+    fn matrix_view_is_the_transpose_of_the_pytorch_layout() {
+        let arch = Arch::tiny(2);
+        let mut p = ParamSet::zeros(&arch);
+        // fc1.weight is [7, 5] row-major: element (o, i) at o*5 + i.
+        for (k, v) in p.get_mut("fc1.weight").iter_mut().enumerate() {
+            *v = k as f32;
+        }
+        let t = p.matrix_t("fc1.weight");
+        assert_eq!((t.nrows(), t.ncols()), (5, 7));
+        assert_eq!(t[(2, 3)], (3 * 5 + 2) as f32);
+    }
+}

@@ -65,6 +65,9 @@ pub struct Dataset {
     pub v_east: Vec<f32>,
     /// True heading, degrees clockwise from north.
     pub heading_deg: Vec<f32>,
+    /// Receiver-reported speed accuracy (1σ, m/s), NaN when unknown. Not a network input;
+    /// used to fit the accuracy-derived σ.
+    pub speed_acc: Vec<f32>,
 }
 
 impl Dataset {
@@ -77,10 +80,11 @@ impl Dataset {
         self.v_north.is_empty()
     }
     /// Append one sample.
-    pub fn push(&mut self, v_north: f32, v_east: f32, heading_deg: f32) {
+    pub fn push(&mut self, v_north: f32, v_east: f32, heading_deg: f32, speed_acc: f32) {
         self.v_north.push(v_north);
         self.v_east.push(v_east);
         self.heading_deg.push(heading_deg);
+        self.speed_acc.push(speed_acc);
     }
 }
 
@@ -91,9 +95,12 @@ pub struct EpochReport {
     pub epoch: usize,
     /// Mean training loss.
     pub train_loss: f32,
+    /// Validation objective (MAE in radians plus weighted σ negative log-likelihood):
+    /// what early stopping selects on.
+    pub val_loss: f32,
     /// Validation MAE of the wrapped heading error, degrees.
     pub val_mae_deg: f32,
-    /// Best validation MAE so far.
+    /// Validation MAE of the best epoch so far, degrees.
     pub best_val_mae_deg: f32,
     /// Learning rate used in this epoch.
     pub lr: f32,
@@ -106,9 +113,13 @@ pub struct Trained {
     pub params: ParamSet,
     /// σ scale fitted on the validation set (68.3% of errors within 1σ).
     pub sigma_scale: f32,
-    /// Epoch of the best weights.
+    /// Scale of the sAcc-derived σ, fitted the same way on validation samples that report
+    /// a speed accuracy; NaN for heads that do not use it (restricted ranges, where the
+    /// prior, not the receiver noise, bounds the error at low speed).
+    pub accuracy_sigma_scale: f32,
+    /// Epoch of the best weights (lowest validation objective).
     pub best_epoch: usize,
-    /// Best validation MAE, degrees.
+    /// Validation MAE of the best weights, degrees.
     pub best_val_mae_deg: f32,
     /// Epochs run.
     pub epochs_run: usize,
@@ -152,6 +163,7 @@ pub fn dense_backward(
 
 /// Batch norm in training mode: normalises each channel (row) over the batch, writes
 /// `x̂` and `y = γ·x̂ + β`, returns per-channel mean and biased variance.
+#[allow(clippy::too_many_arguments)] // the layer's inputs and outputs, as in the math
 pub fn bn_forward_train(
     z: MatRef<'_, f32>,
     gamma: &[f32],
@@ -598,7 +610,8 @@ pub fn scale_input(v_north: f32, v_east: f32, input_scale: f32) -> [f32; 2] {
     [v_north / input_scale, v_east / input_scale]
 }
 
-/// Wrapped errors (radians) and raw σ (radians) of a folded network over a dataset.
+/// Wrapped errors (radians) of the decoded headings and raw σ (radians) of a folded
+/// network over a dataset.
 pub fn evaluate(
     net: &Network,
     head: &Head,
@@ -629,7 +642,9 @@ pub fn evaluate(
         for j in 0..len {
             let out: Vec<f32> = (0..net.outputs()).map(|k| y[(k, j)]).collect();
             let i = start + j;
-            let (_, e, s) = head.loss(
+            // Judge what users get: the decoded (and, for a restricted range, clamped)
+            // heading, with σ before calibration.
+            let (_, _, s) = head.loss(
                 &out,
                 data.v_north[i],
                 data.v_east[i],
@@ -637,7 +652,10 @@ pub fn evaluate(
                 0.0,
                 &mut dy,
             );
-            errs.push(e);
+            let (deg, _) = head.decode(&out, data.v_north[i], data.v_east[i], 1.0);
+            errs.push(crate::head::wrap_rad(
+                (deg - data.heading_deg[i]).to_radians(),
+            ));
             sigmas.push(s);
         }
         start += len;
@@ -649,6 +667,35 @@ pub fn evaluate(
 fn mae_deg(errs: &[f32]) -> f32 {
     (errs.iter().map(|e| e.abs() as f64).sum::<f64>() / errs.len().max(1) as f64).to_degrees()
         as f32
+}
+
+/// Mean of the training objective over validation errors and raw σ (radians).
+fn val_objective(errs: &[f32], sigmas: &[f32], sigma_weight: f32) -> f32 {
+    let mut sum = 0.0f64;
+    for (e, s) in errs.iter().zip(sigmas) {
+        let s = s.max(1e-9);
+        sum += e.abs() as f64 + (sigma_weight * (0.5 * e * e / (s * s) + s.ln())) as f64;
+    }
+    (sum / errs.len().max(1) as f64) as f32
+}
+
+/// The unscaled σ (radians) a receiver's speed accuracy implies for atan2 at this
+/// velocity: `sAcc/ŝ`, capped at the uniform-circle value, where
+/// `ŝ² = |v|² − 2·sAcc²` removes the noise's own contribution to the measured speed
+/// (2-D noise adds `2σ²` to `E|v|²`; without this, a stopped vehicle's noise looks
+/// like slow motion with a confident heading). `None` when sAcc is unknown, negative or
+/// not finite.
+pub fn accuracy_sigma_base(v_north: f32, v_east: f32, speed_acc: f32) -> Option<f32> {
+    if !(speed_acc.is_finite() && speed_acc > 0.0) {
+        return None;
+    }
+    let cap = crate::head::MAX_STD_DEG.to_radians();
+    let s2 = v_north * v_north + v_east * v_east - 2.0 * speed_acc * speed_acc;
+    Some(if s2 > 0.0 {
+        (speed_acc / s2.sqrt()).min(cap)
+    } else {
+        cap
+    })
 }
 
 /// The scale `k` such that 68.27% of `|e|/σ` are at most `k`.
@@ -703,6 +750,7 @@ pub fn train(
     let warmup = steps_per_epoch.max(1);
     let mut step = 0usize;
     let mut best = (f32::INFINITY, 0usize, params.clone());
+    let mut best_mae = f32::INFINITY;
     let mut epochs_run = 0;
     let mut yj = vec![0.0f32; arch.output];
     let mut dyj = vec![0.0f32; arch.output];
@@ -752,27 +800,48 @@ pub fn train(
             step += 1;
         }
         let net = Network::fold(&params);
-        let (errs, _) = evaluate(&net, head, input_scale, val);
+        let (errs, sigmas) = evaluate(&net, head, input_scale, val);
         let val_mae = mae_deg(&errs);
-        if val_mae < best.0 {
-            best = (val_mae, epoch, params.clone());
+        // Select on the training objective (heading MAE plus the σ likelihood), not on MAE
+        // alone: where the heading cannot improve (full circle), σ still can.
+        let val_loss = val_objective(&errs, &sigmas, cfg.sigma_weight);
+        if val_loss < best.0 {
+            best = (val_loss, epoch, params.clone());
+            best_mae = val_mae;
         }
         progress(&EpochReport {
             epoch,
             train_loss: (loss_sum / (steps_per_epoch * batch).max(1) as f64) as f32,
+            val_loss,
             val_mae_deg: val_mae,
-            best_val_mae_deg: best.0,
+            best_val_mae_deg: best_mae,
             lr,
         });
         if epoch - best.1 >= cfg.patience {
             break;
         }
     }
-    let (best_mae, best_epoch, params) = best;
+    let (_, best_epoch, params) = best;
     let net = Network::fold(&params);
     let (errs, sigmas) = evaluate(&net, head, input_scale, val);
+    let accuracy_sigma_scale = if head.uses_speed_accuracy() {
+        let (e, b): (Vec<f32>, Vec<f32>) = (0..val.len())
+            .filter_map(|i| {
+                let base = accuracy_sigma_base(val.v_north[i], val.v_east[i], val.speed_acc[i])?;
+                Some((errs[i], base))
+            })
+            .unzip();
+        if e.is_empty() {
+            f32::NAN
+        } else {
+            fit_sigma_scale(&e, &b)
+        }
+    } else {
+        f32::NAN
+    };
     Trained {
         params,
+        accuracy_sigma_scale,
         sigma_scale: fit_sigma_scale(&errs, &sigmas),
         best_epoch,
         best_val_mae_deg: best_mae,
@@ -959,8 +1028,10 @@ mod tests {
     /// a random linear term so the σ output is exercised too).
     #[test]
     fn whole_network_gradient_matches_finite_differences() {
-        let arch = Arch::tiny(3);
-        let head = Head::Residual;
+        let arch = Arch::tiny(4);
+        let head = Head::Residual {
+            range_deg: [0.0, 360.0],
+        };
         let mut rng = ChaCha8Rng::seed_from_u64(10);
         let params0 = ParamSet::init(&arch, &mut rng);
         let n = 6;
@@ -973,7 +1044,7 @@ mod tests {
             .collect();
         let mut drop_rng = ChaCha8Rng::seed_from_u64(11);
         graph.sample_dropout(0.2, &mut drop_rng);
-        let r = rand_mat(&mut rng, 3, n);
+        let r = rand_mat(&mut rng, 4, n);
         let run = |p: &mut ParamSet, graph: &mut Graph, want_grad: bool| {
             {
                 let mut x = graph.input_mut();
@@ -984,13 +1055,13 @@ mod tests {
             }
             graph.forward(p, Mode::Train);
             let out = graph.output().to_owned();
-            let mut dout = Mat::zeros(3, n);
+            let mut dout = Mat::zeros(4, n);
             let mut total = 0.0f64;
-            let mut dy = [0.0f32; 3];
+            let mut dy = [0.0f32; 4];
             for j in 0..n {
-                let y = [out[(0, j)], out[(1, j)], out[(2, j)]];
+                let y = [out[(0, j)], out[(1, j)], out[(2, j)], out[(3, j)]];
                 total += head.loss(&y, vn[j], ve[j], truth[j], 0.0, &mut dy).0 as f64;
-                for k in 0..3 {
+                for k in 0..4 {
                     total += (r[(k, j)] * y[k]) as f64;
                     dout[(k, j)] = dy[k] + r[(k, j)];
                 }
@@ -1083,18 +1154,25 @@ mod tests {
         for _ in 0..600 {
             let h: f32 = rng.random_range(0.0..90.0);
             let s: f32 = rng.random_range(0.5..3.0);
-            data.push(s * h.to_radians().cos(), s * h.to_radians().sin(), h);
+            data.push(
+                s * h.to_radians().cos(),
+                s * h.to_radians().sin(),
+                h,
+                f32::NAN,
+            );
         }
         let (tr, va) = (
             Dataset {
                 v_north: data.v_north[..500].to_vec(),
                 v_east: data.v_east[..500].to_vec(),
                 heading_deg: data.heading_deg[..500].to_vec(),
+                speed_acc: data.speed_acc[..500].to_vec(),
             },
             Dataset {
                 v_north: data.v_north[500..].to_vec(),
                 v_east: data.v_east[500..].to_vec(),
                 heading_deg: data.heading_deg[500..].to_vec(),
+                speed_acc: data.speed_acc[500..].to_vec(),
             },
         );
         let head = Head::Angle {

@@ -19,6 +19,25 @@ use serde::{Deserialize, Serialize};
 use crate::head::Head;
 use crate::params::{Arch, ParamSet};
 
+fn nan() -> f32 {
+    f32::NAN
+}
+
+/// JSON has no NaN: write it as `null` and read `null` back as NaN.
+mod nan_as_null {
+    use serde::{Deserialize, Deserializer, Serializer};
+    pub fn serialize<S: Serializer>(v: &f32, s: S) -> Result<S::Ok, S::Error> {
+        if v.is_finite() {
+            s.serialize_f32(*v)
+        } else {
+            s.serialize_none()
+        }
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+        Ok(Option::<f32>::deserialize(d)?.unwrap_or(f32::NAN))
+    }
+}
+
 /// Value of the `format` metadata key this version writes and reads.
 pub const FORMAT: &str = "ghnet/1";
 
@@ -42,6 +61,11 @@ pub struct ModelMeta {
     /// Multiplier on the network's σ, fitted on validation data so that 68.3% of errors
     /// fall within 1σ.
     pub sigma_scale: f32,
+    /// For full-circle models, the factor `k` in the σ derived from the receiver's speed
+    /// accuracy, `σ_ψ = k·sAcc/speed` (radians), fitted on validation data like
+    /// `sigma_scale`; `null` (NaN) when the model does not use sAcc. Optional in files.
+    #[serde(default = "nan", with = "nan_as_null")]
+    pub accuracy_sigma_scale: f32,
     /// Free-form description of the training data (simulator and parameters).
     pub training_data: serde_json::Value,
     /// Training hyper-parameters and outcome.
@@ -118,6 +142,12 @@ const JSON_KEYS: [&str; 6] = [
     "training",
     "metrics",
 ];
+
+/// Metadata keys whose values are JSON numbers.
+const NUMBER_KEYS: [&str; 3] = ["input_scale_mps", "sigma_scale", "accuracy_sigma_scale"];
+
+/// Metadata keys a file may omit.
+const OPTIONAL_KEYS: [&str; 1] = ["accuracy_sigma_scale"];
 
 /// Serialise weights and metadata to safetensors bytes.
 pub fn to_bytes(params: &ParamSet, meta: &ModelMeta) -> Vec<u8> {
@@ -237,15 +267,18 @@ fn parse_meta(md: &HashMap<String, String>) -> Result<ModelMeta, WeightsError> {
         "input_scale_mps",
         "heading_range_deg",
         "sigma_scale",
+        "accuracy_sigma_scale",
         "training_data",
         "training",
         "metrics",
     ] {
-        let raw = md
-            .get(key)
-            .ok_or_else(|| WeightsError::MissingMetadata(key.into()))?;
-        let value = if JSON_KEYS.contains(&key) || key == "input_scale_mps" || key == "sigma_scale"
-        {
+        let Some(raw) = md.get(key) else {
+            if OPTIONAL_KEYS.contains(&key) {
+                continue;
+            }
+            return Err(WeightsError::MissingMetadata(key.into()));
+        };
+        let value = if JSON_KEYS.contains(&key) || NUMBER_KEYS.contains(&key) {
             serde_json::from_str(raw).map_err(|e| WeightsError::BadMetadata {
                 key: key.into(),
                 reason: e.to_string(),
@@ -281,7 +314,7 @@ mod tests {
     use rand::SeedableRng;
 
     fn sample() -> (ParamSet, ModelMeta) {
-        let arch = Arch::paper(3);
+        let arch = Arch::paper(4);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let params = ParamSet::init(&arch, &mut rng);
         let meta = ModelMeta {
@@ -289,10 +322,13 @@ mod tests {
             name: "test".into(),
             architecture: arch,
             activation: "gelu_tanh".into(),
-            head: Head::Residual,
+            head: Head::Residual {
+                range_deg: [0.0, 360.0],
+            },
             input_scale_mps: 5.0,
             heading_range_deg: [0.0, 360.0],
             sigma_scale: 1.25,
+            accuracy_sigma_scale: 1.1,
             training_data: serde_json::json!({"sim": "none"}),
             training: serde_json::json!({}),
             metrics: serde_json::json!({"mae": 1.5}),

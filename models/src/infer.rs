@@ -1,0 +1,251 @@
+//! Offline inference over CSV logs, streaming in constant memory.
+//!
+//! Input: a CSV with a header that has `v_north` and `v_east` columns (m/s), and
+//! optionally `speed_acc` (the receiver's 1σ speed accuracy, m/s, like u-blox sAcc; empty
+//! when unknown), which full-circle models use for σ; every other column passes through
+//! unchanged. Output: the same rows with `heading_deg` (clockwise from
+//! north, [0, 360)), `heading_std_deg` and `status` appended. A row whose velocity is
+//! empty, unparsable, NaN, infinite or absurd (over the policy's max speed) gets status
+//! `invalid` and empty heading fields; it never stops the file. Rows are read, answered
+//! through the batch path and written in blocks, so memory does not grow with the file.
+
+use std::io::{Read, Write};
+
+use crate::model::{Prediction, Predictor, Status};
+
+/// Rows per block: large enough for the batch path, small enough to stay in cache.
+const BLOCK: usize = 1024;
+
+/// Columns appended to every row.
+pub const OUTPUT_COLUMNS: [&str; 3] = ["heading_deg", "heading_std_deg", "status"];
+
+/// Why a file could not be processed (as opposed to a row, which is answered `invalid`).
+#[derive(Debug, thiserror::Error)]
+pub enum InferError {
+    /// The header lacks a required column.
+    #[error("input has no `{0}` column (need a header with v_north and v_east, in m/s)")]
+    MissingColumn(&'static str),
+    /// The header already has a column this command would add.
+    #[error("input already has a `{0}` column; rename it or drop it first")]
+    DuplicateColumn(&'static str),
+    /// Reading or writing failed.
+    #[error("csv: {0}")]
+    Csv(#[from] csv::Error),
+    /// Writing failed.
+    #[error("write: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// What a run did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct InferSummary {
+    /// Data rows read (and written).
+    pub rows: u64,
+    /// Rows answered `invalid`.
+    pub invalid: u64,
+}
+
+/// Parse a velocity field: empty or unparsable gives NaN, which the predictor answers
+/// `invalid`.
+fn parse_field(field: Option<&[u8]>) -> f32 {
+    field
+        .and_then(|b| std::str::from_utf8(b).ok())
+        .and_then(|s| s.trim().parse::<f32>().ok())
+        .unwrap_or(f32::NAN)
+}
+
+/// Stream `input` to `output`, answering every row.
+pub fn run(
+    predictor: &mut Predictor,
+    input: impl Read,
+    output: impl Write,
+) -> Result<InferSummary, InferError> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .flexible(true)
+        .has_headers(true)
+        .from_reader(input);
+    let mut wtr = csv::WriterBuilder::new().flexible(true).from_writer(output);
+    let header = rdr.byte_headers()?.clone();
+    let find = |name: &'static str| header.iter().position(|h| h == name.as_bytes());
+    let i_n = find("v_north").ok_or(InferError::MissingColumn("v_north"))?;
+    let i_e = find("v_east").ok_or(InferError::MissingColumn("v_east"))?;
+    let i_acc = find("speed_acc");
+    for c in OUTPUT_COLUMNS {
+        if find(c).is_some() {
+            return Err(InferError::DuplicateColumn(c));
+        }
+    }
+    let mut out_header = header.clone();
+    for c in OUTPUT_COLUMNS {
+        out_header.push_field(c.as_bytes());
+    }
+    wtr.write_byte_record(&out_header)?;
+
+    let mut records: Vec<csv::ByteRecord> = (0..BLOCK).map(|_| csv::ByteRecord::new()).collect();
+    let mut vn = vec![0.0f32; BLOCK];
+    let mut ve = vec![0.0f32; BLOCK];
+    let mut acc = vec![f32::NAN; BLOCK];
+    let mut preds = vec![
+        Prediction {
+            heading_deg: 0.0,
+            std_deg: 0.0,
+            atan2_deg: 0.0,
+            speed: 0.0,
+            status: Status::Invalid,
+        };
+        BLOCK
+    ];
+    let mut summary = InferSummary::default();
+    let mut num = String::with_capacity(32);
+    loop {
+        let mut n = 0;
+        while n < BLOCK && rdr.read_byte_record(&mut records[n])? {
+            vn[n] = parse_field(records[n].get(i_n));
+            ve[n] = parse_field(records[n].get(i_e));
+            acc[n] = i_acc.map_or(f32::NAN, |i| parse_field(records[n].get(i)));
+            n += 1;
+        }
+        if n == 0 {
+            break;
+        }
+        predictor.predict_batch_with_accuracy(&vn[..n], &ve[..n], &acc[..n], &mut preds[..n]);
+        for (rec, p) in records[..n].iter_mut().zip(&preds[..n]) {
+            summary.rows += 1;
+            if p.status == Status::Invalid {
+                summary.invalid += 1;
+                rec.push_field(b"");
+                rec.push_field(b"");
+            } else {
+                use std::fmt::Write as _;
+                num.clear();
+                let _ = write!(num, "{:.4}", p.heading_deg);
+                rec.push_field(num.as_bytes());
+                num.clear();
+                let _ = write!(num, "{:.4}", p.std_deg);
+                rec.push_field(num.as_bytes());
+            }
+            rec.push_field(p.status.as_str().as_bytes());
+            wtr.write_byte_record(rec)?;
+        }
+        if n < BLOCK {
+            break;
+        }
+    }
+    wtr.flush()?;
+    Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Model;
+    use std::sync::Arc;
+
+    fn predictor() -> Predictor {
+        Predictor::new(Arc::new(
+            Model::builtin("ghnet-full").expect("embedded model"),
+        ))
+    }
+
+    fn infer(input: &str) -> Result<(String, InferSummary), InferError> {
+        let mut out = Vec::new();
+        let s = run(&mut predictor(), input.as_bytes(), &mut out)?;
+        Ok((String::from_utf8(out).unwrap(), s))
+    }
+
+    #[test]
+    fn passes_columns_through_and_appends_three() {
+        let (out, s) = infer("t,v_north,v_east,note\n1,1.0,1.0,a\n2,0.0,-2.0,\"b,c\"\n").unwrap();
+        let lines: Vec<&str> = out.lines().collect();
+        assert_eq!(
+            lines[0],
+            "t,v_north,v_east,note,heading_deg,heading_std_deg,status"
+        );
+        assert!(lines[1].starts_with("1,1.0,1.0,a,"), "{}", lines[1]);
+        assert!(lines[2].starts_with("2,0.0,-2.0,\"b,c\","), "{}", lines[2]);
+        let h: f32 = lines[2].split(',').nth(5).unwrap().parse().unwrap();
+        assert!((h - 270.0).abs() < 5.0, "heading {h}");
+        assert_eq!(
+            s,
+            InferSummary {
+                rows: 2,
+                invalid: 0
+            }
+        );
+    }
+
+    #[test]
+    fn bad_rows_are_invalid_and_never_stop_the_file() {
+        let input = "v_north,v_east\n,1\nNaN,1\ninf,0\n1,-inf\n200,0\nabc,1\n1\n1,1\n";
+        let (out, s) = infer(input).unwrap();
+        let lines: Vec<&str> = out.lines().collect();
+        assert_eq!(lines.len(), 9);
+        for l in &lines[1..8] {
+            assert!(l.ends_with(",,,invalid") || l.ends_with(",,invalid"), "{l}");
+        }
+        assert!(
+            lines[8].ends_with(",ok") || lines[8].contains("low_speed"),
+            "{}",
+            lines[8]
+        );
+        assert_eq!(
+            s,
+            InferSummary {
+                rows: 8,
+                invalid: 7
+            }
+        );
+    }
+
+    #[test]
+    fn speed_accuracy_column_sets_sigma_for_the_full_circle_model() {
+        let (out, _) = infer("v_north,v_east,speed_acc\n2,0,0.02\n2,0,0.4\n2,0,\n").unwrap();
+        let std: Vec<f32> = out
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
+            .collect();
+        assert!(
+            std[0] < std[1],
+            "a noisier receiver must give a larger σ: {std:?}"
+        );
+        assert!(std[2].is_finite() && std[2] > 0.0);
+    }
+
+    #[test]
+    fn missing_columns_are_one_line_errors() {
+        let e = infer("north,v_east\n1,2\n").unwrap_err().to_string();
+        assert!(e.contains("`v_north`") && !e.contains('\n'), "{e}");
+        let e = infer("v_north,v_east,status\n1,2,x\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`status`"), "{e}");
+        let (out, s) = infer("v_north,v_east\n").unwrap();
+        assert_eq!(out.lines().count(), 1);
+        assert_eq!(s.rows, 0);
+    }
+
+    #[test]
+    fn batch_output_equals_single_sample_path() {
+        let mut p = predictor();
+        let mut input = String::from("v_north,v_east\n");
+        let mut expect = Vec::new();
+        for i in 0..3000 {
+            let a = i as f32 * 0.37;
+            let s = 0.01 * (i % 400) as f32;
+            let (vn, ve) = (s * a.cos(), s * a.sin());
+            input.push_str(&format!("{vn},{ve}\n"));
+            expect.push(p.predict(vn, ve));
+        }
+        let (out, _) = infer(&input).unwrap();
+        for (line, e) in out.lines().skip(1).zip(&expect) {
+            let f: Vec<&str> = line.split(',').collect();
+            let h: f32 = f[2].parse().unwrap();
+            assert!(
+                (h - e.heading_deg).abs() < 1e-3 || (h - e.heading_deg).abs() > 359.99,
+                "{line} vs {e:?}"
+            );
+            assert_eq!(f[4], e.status.as_str());
+        }
+    }
+}

@@ -1,0 +1,348 @@
+//! `ghnet`: simulate, train, evaluate, export and run GHNet models from the command line.
+//!
+//! A thin layer over the `ghnet_models` library; every subcommand's `--help` documents it.
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+
+use ghnet_models::recipes::{self, DataSpec, Recipe};
+use ghnet_models::sim::{self, RealisticParams, S1Params};
+use ghnet_models::weights::{ModelMeta, FORMAT};
+use ghnet_models::{eval, infer, plot, train, Model, Predictor, DEFAULT_MODEL};
+
+#[derive(Parser)]
+#[command(
+    name = "ghnet",
+    version,
+    about = "GHNet: GNSS heading from velocity, on faer"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+#[allow(clippy::large_enum_variant)] // parsed once
+enum Cmd {
+    /// Write a simulated data set as CSV (seeded, reproducible).
+    Simulate {
+        #[command(subcommand)]
+        which: SimCmd,
+    },
+    /// Train a model from a shipped recipe (`paper-s1`, `ghnet-full`) and write it.
+    Train {
+        /// Recipe name.
+        #[arg(long)]
+        recipe: String,
+        /// Output safetensors file (default: models/<recipe>.safetensors).
+        #[arg(long)]
+        output: Option<PathBuf>,
+        /// Override the recipe's seed for initialisation, shuffling and dropout.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Override the recipe's maximum epochs.
+        #[arg(long)]
+        epochs: Option<usize>,
+        /// Hide the progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Evaluate a model on its held-out data: per-speed-bin tables, σ calibration, plot.
+    Eval {
+        /// Built-in model name or safetensors path.
+        #[arg(long, default_value = DEFAULT_MODEL)]
+        model: String,
+        /// Directory for `<name>.md`, `<name>.csv`, `<name>.json` and `<name>.svg`;
+        /// without it the Markdown table goes to stdout.
+        #[arg(long)]
+        out_dir: Option<PathBuf>,
+    },
+    /// Answer every row of a CSV log with heading, σ and status.
+    Infer {
+        /// Built-in model name or safetensors path.
+        #[arg(long, default_value = DEFAULT_MODEL)]
+        model: String,
+        /// Input CSV with `v_north` and `v_east` columns (m/s).
+        #[arg(long)]
+        input: PathBuf,
+        /// Output CSV (input columns plus heading_deg, heading_std_deg, status).
+        #[arg(long)]
+        output: PathBuf,
+    },
+    /// Write a model (built-in or file) to a safetensors file.
+    Export {
+        /// Built-in model name or safetensors path.
+        #[arg(long, default_value = DEFAULT_MODEL)]
+        model: String,
+        /// Output file.
+        #[arg(long)]
+        output: PathBuf,
+    },
+    /// Print a model's metadata as JSON.
+    Info {
+        /// Built-in model name or safetensors path.
+        #[arg(long, default_value = DEFAULT_MODEL)]
+        model: String,
+    },
+}
+
+#[derive(Subcommand)]
+#[allow(clippy::large_enum_variant)] // parsed once
+enum SimCmd {
+    /// The paper's S1 protocol: speed 0..3.5 step 0.1, heading 0..90 step 0.5, ten draws.
+    S1 {
+        #[command(flatten)]
+        params: S1Params,
+        /// Seed of noise and split.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output CSV.
+        #[arg(long)]
+        output: PathBuf,
+    },
+    /// A realistic consumer receiver over the full circle.
+    Realistic {
+        #[command(flatten)]
+        params: RealisticParams,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output CSV.
+        #[arg(long)]
+        output: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn load(model: &str) -> Result<Arc<Model>> {
+    Ok(Arc::new(Model::from_name_or_path(model)?))
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.cmd {
+        Cmd::Simulate { which } => {
+            let (samples, output) = match which {
+                SimCmd::S1 {
+                    params,
+                    seed,
+                    output,
+                } => (sim::simulate_s1(&params, seed), output),
+                SimCmd::Realistic {
+                    params,
+                    seed,
+                    output,
+                } => (sim::simulate_realistic(&params, seed), output),
+            };
+            sim::write_csv(&output, &samples)
+                .with_context(|| format!("writing {}", output.display()))?;
+            eprintln!("wrote {} samples to {}", samples.len(), output.display());
+        }
+        Cmd::Train {
+            recipe,
+            output,
+            seed,
+            epochs,
+            quiet,
+        } => {
+            let mut r = Recipe::named(&recipe).with_context(|| {
+                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-full)")
+            })?;
+            if let Some(s) = seed {
+                r.train.seed = s;
+            }
+            if let Some(e) = epochs {
+                r.train.epochs = e;
+            }
+            let output = output.unwrap_or_else(|| format!("models/{recipe}.safetensors").into());
+            train_recipe(&r, &output, quiet)?;
+        }
+        Cmd::Eval { model, out_dir } => {
+            let model = load(&model)?;
+            let data: DataSpec = serde_json::from_value(model.meta().training_data.clone())
+                .context("model metadata `training_data` does not name a simulator to regenerate its held-out data")?;
+            let max_speed = model.meta().training["eval_max_speed"]
+                .as_f64()
+                .unwrap_or(5.0);
+            let (_, _, test) = recipes::split(&data.generate());
+            let report = recipes::evaluate(&model, &data, &test, max_speed)?;
+            let md = eval::to_markdown(&report);
+            match out_dir {
+                None => println!("{md}"),
+                Some(dir) => {
+                    std::fs::create_dir_all(&dir)?;
+                    let name = model.name();
+                    std::fs::write(dir.join(format!("{name}.md")), &md)?;
+                    std::fs::write(
+                        dir.join(format!("{name}.summary.md")),
+                        eval::to_markdown_compact(&report, name, 200),
+                    )?;
+                    eval::write_csv(dir.join(format!("{name}.csv")), &report)?;
+                    std::fs::write(
+                        dir.join(format!("{name}.json")),
+                        serde_json::to_string_pretty(&report)?,
+                    )?;
+                    plot::plot_mae_vs_speed_with(
+                        &report,
+                        dir.join(format!("{name}.svg")),
+                        plot::YScale::Log,
+                    )?;
+                    eprintln!(
+                        "wrote {}/{name}.{{md,summary.md,csv,json,svg}}",
+                        dir.display()
+                    );
+                }
+            }
+        }
+        Cmd::Infer {
+            model,
+            input,
+            output,
+        } => {
+            let model = load(&model)?;
+            let inp = File::open(&input)
+                .with_context(|| format!("cannot open input {}", input.display()))?;
+            let out = File::create(&output)
+                .with_context(|| format!("cannot create output {}", output.display()))?;
+            let mut p = Predictor::new(model);
+            let s = infer::run(
+                &mut p,
+                BufReader::with_capacity(1 << 16, inp),
+                BufWriter::with_capacity(1 << 16, out),
+            )
+            .with_context(|| format!("{}", input.display()))?;
+            eprintln!(
+                "{} rows, {} invalid -> {}",
+                s.rows,
+                s.invalid,
+                output.display()
+            );
+        }
+        Cmd::Export { model, output } => {
+            let m = load(&model)?;
+            std::fs::write(&output, m.to_safetensors())
+                .with_context(|| format!("writing {}", output.display()))?;
+            eprintln!("wrote {} ({}) to {}", m.name(), m.id(), output.display());
+        }
+        Cmd::Info { model } => {
+            let m = load(&model)?;
+            println!("{}", serde_json::to_string_pretty(m.meta())?);
+        }
+    }
+    Ok(())
+}
+
+fn train_recipe(r: &Recipe, output: &std::path::Path, quiet: bool) -> Result<()> {
+    let t0 = std::time::Instant::now();
+    let samples = r.data.generate();
+    let (tr, va, test) = recipes::split(&samples);
+    if tr.is_empty() || va.is_empty() || test.is_empty() {
+        bail!(
+            "recipe {} produced an empty train, validation or test split",
+            r.name
+        );
+    }
+    eprintln!(
+        "{}: {} train, {} validation, {} test samples ({})",
+        r.name,
+        tr.len(),
+        va.len(),
+        test.len(),
+        r.data.label()
+    );
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(r.train.epochs as u64)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] epoch {pos}/{len} {msg}",
+        )
+        .expect("template")
+        .progress_chars("=> "),
+    );
+    let arch = r.arch();
+    let trained = train::train(&arch, &r.head, r.input_scale_mps, &tr, &va, &r.train, |e| {
+        bar.set_position(e.epoch as u64);
+        bar.set_message(format!(
+            "loss {:.4}  val {:.4} (MAE {:.3}°)  best MAE {:.3}°  lr {:.1e}",
+            e.train_loss, e.val_loss, e.val_mae_deg, e.best_val_mae_deg, e.lr
+        ));
+        if quiet {
+            eprintln!(
+                "epoch {} loss {:.4} val {:.4} MAE {:.3} best MAE {:.3}",
+                e.epoch, e.train_loss, e.val_loss, e.val_mae_deg, e.best_val_mae_deg
+            );
+        }
+    });
+    bar.finish();
+    let (lo, hi) = r.head.range_deg();
+    let mut meta = ModelMeta {
+        format: FORMAT.into(),
+        name: r.name.clone(),
+        architecture: arch,
+        activation: "gelu_tanh".into(),
+        head: r.head,
+        input_scale_mps: r.input_scale_mps,
+        heading_range_deg: [lo, hi],
+        sigma_scale: trained.sigma_scale,
+        accuracy_sigma_scale: trained.accuracy_sigma_scale,
+        training_data: serde_json::to_value(&r.data)?,
+        training: serde_json::json!({
+            "config": r.train,
+            "best_epoch": trained.best_epoch,
+            "epochs_run": trained.epochs_run,
+            "best_val_mae_deg": trained.best_val_mae_deg,
+            "train_samples": tr.len(),
+            "val_samples": va.len(),
+            "seconds": t0.elapsed().as_secs_f64(),
+            "eval_max_speed": r.eval_max_speed,
+        }),
+        metrics: serde_json::Value::Null,
+    };
+    // Measure on held-out data and store the headline numbers in the file itself.
+    let model = Arc::new(Model::new(trained.params.clone(), meta.clone()));
+    let report = recipes::evaluate(&model, &r.data, &test, r.eval_max_speed)?;
+    let overall = report
+        .overall
+        .stats_of(&r.name)
+        .context("model missing from its own report")?;
+    meta.metrics = serde_json::json!({
+        "test_samples": test.len(),
+        "mae_deg": overall.mae_deg,
+        "rmse_deg": overall.rmse_deg,
+        "within_1sigma": overall.within_1sigma,
+        "within_2sigma": overall.within_2sigma,
+        "atan2_mae_deg": report.overall.stats_of(eval::ATAN2).map(|s| s.mae_deg),
+    });
+    ghnet_models::weights::write(output, &trained.params, &meta)
+        .with_context(|| format!("writing {}", output.display()))?;
+    eprintln!(
+        "{}: best epoch {} of {}, test MAE {:.3}° (atan2 {:.3}°), within 1σ {:.1}%, 2σ {:.1}%, {:.0} s -> {}",
+        r.name,
+        trained.best_epoch,
+        trained.epochs_run,
+        overall.mae_deg,
+        report.overall.stats_of(eval::ATAN2).map(|s| s.mae_deg).unwrap_or(f64::NAN),
+        100.0 * overall.within_1sigma.unwrap_or(f64::NAN),
+        100.0 * overall.within_2sigma.unwrap_or(f64::NAN),
+        t0.elapsed().as_secs_f64(),
+        output.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,202 @@
+//! How the shipped models are made and judged: data, head, scaling and hyper-parameters
+//! for `paper-s1` and `ghnet-full`, and the held-out evaluation of any model.
+//!
+//! A model file records in its `training_data` metadata which simulator, parameters and
+//! seed produced it, so `ghnet eval --model X` regenerates exactly its held-out split
+//! (test tracks or test grid points that training never saw) without shipping data.
+
+use serde::{Deserialize, Serialize};
+
+use crate::bayes::BayesS1;
+use crate::eval::{self, Estimate, EvalConfig, Report, Truth};
+use crate::head::Head;
+use crate::model::{Model, Predictor};
+use crate::sim::{self, RealisticParams, S1Params, Sample, Split};
+use crate::train::{Dataset, TrainConfig};
+use crate::Arch;
+
+/// Which simulator made a data set, with its parameters and seed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "sim", rename_all = "snake_case")]
+#[allow(clippy::large_enum_variant)] // made once per command; boxing buys nothing
+pub enum DataSpec {
+    /// The paper's S1 grid.
+    S1 {
+        /// Grid and noise.
+        params: S1Params,
+        /// Seed of noise and split.
+        seed: u64,
+    },
+    /// The realistic receiver over the full circle.
+    Realistic {
+        /// Trajectories and receiver behaviour.
+        params: RealisticParams,
+        /// Seed.
+        seed: u64,
+    },
+}
+
+impl DataSpec {
+    /// Generate the samples (all splits).
+    pub fn generate(&self) -> Vec<Sample> {
+        match self {
+            DataSpec::S1 { params, seed } => sim::simulate_s1(params, *seed),
+            DataSpec::Realistic { params, seed } => sim::simulate_realistic(params, *seed),
+        }
+    }
+
+    /// Short name for reports.
+    pub fn label(&self) -> &'static str {
+        match self {
+            DataSpec::S1 { .. } => "S1",
+            DataSpec::Realistic { .. } => "realistic",
+        }
+    }
+}
+
+/// Everything that defines a shipped model.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Recipe {
+    /// Model name.
+    pub name: String,
+    /// Training data.
+    pub data: DataSpec,
+    /// Output head.
+    pub head: Head,
+    /// Input divisor, m/s.
+    pub input_scale_mps: f32,
+    /// Hyper-parameters.
+    pub train: TrainConfig,
+    /// Speed above which evaluation puts everything in one last bin, m/s.
+    pub eval_max_speed: f64,
+}
+
+impl Recipe {
+    /// A shipped recipe by model name.
+    pub fn named(name: &str) -> Option<Recipe> {
+        match name {
+            "paper-s1" => Some(Recipe {
+                name: name.into(),
+                data: DataSpec::S1 {
+                    params: S1Params::default(),
+                    seed: 1,
+                },
+                head: Head::Blend {
+                    centre_deg: 45.0,
+                    half_range_deg: 45.0,
+                },
+                input_scale_mps: 3.5,
+                train: TrainConfig {
+                    epochs: 300,
+                    batch: 256,
+                    lr: 3e-3,
+                    patience: 60,
+                    ..TrainConfig::default()
+                },
+                eval_max_speed: 3.5,
+            }),
+            "ghnet-full" => Some(Recipe {
+                name: name.into(),
+                data: DataSpec::Realistic {
+                    params: RealisticParams::default(),
+                    seed: 1,
+                },
+                head: Head::Residual {
+                    range_deg: [0.0, 360.0],
+                },
+                input_scale_mps: 5.0,
+                train: TrainConfig {
+                    epochs: 60,
+                    batch: 256,
+                    lr: 2e-3,
+                    patience: 15,
+                    ..TrainConfig::default()
+                },
+                eval_max_speed: 10.0,
+            }),
+            _ => None,
+        }
+    }
+
+    /// Architecture: Table I with this head's outputs.
+    pub fn arch(&self) -> Arch {
+        Arch::paper(self.head.outputs())
+    }
+}
+
+/// Split samples into training, validation and test sets.
+///
+/// Realistic data carries whole-track splits from the simulator. S1 marks only train and
+/// test (the paper's 80/20); validation is every tenth training sample in simulator order,
+/// which is a seeded random order.
+pub fn split(samples: &[Sample]) -> (Dataset, Dataset, Vec<Sample>) {
+    let (mut tr, mut va, mut te) = (Dataset::default(), Dataset::default(), Vec::new());
+    let has_val = samples.iter().any(|s| s.split == Split::Val);
+    let mut k = 0usize;
+    for s in samples {
+        match s.split {
+            Split::Test => te.push(s.clone()),
+            Split::Val => va.push(s.v_north, s.v_east, s.true_heading_deg, s.speed_acc),
+            Split::Train => {
+                k += 1;
+                if !has_val && k.is_multiple_of(10) {
+                    va.push(s.v_north, s.v_east, s.true_heading_deg, s.speed_acc);
+                } else {
+                    tr.push(s.v_north, s.v_east, s.true_heading_deg, s.speed_acc);
+                }
+            }
+        }
+    }
+    (tr, va, te)
+}
+
+/// Heading and σ of `model` for every sample, through the batch path, using each
+/// sample's reported speed accuracy as a deployed receiver would.
+pub fn model_estimate(model: &std::sync::Arc<Model>, samples: &[Sample]) -> Estimate {
+    let mut p = Predictor::new(model.clone());
+    let vn: Vec<f32> = samples.iter().map(|s| s.v_north).collect();
+    let ve: Vec<f32> = samples.iter().map(|s| s.v_east).collect();
+    let acc: Vec<f32> = samples.iter().map(|s| s.speed_acc).collect();
+    let mut out = vec![
+        crate::Prediction {
+            heading_deg: 0.0,
+            std_deg: 0.0,
+            atan2_deg: 0.0,
+            speed: 0.0,
+            status: crate::Status::Invalid,
+        };
+        samples.len()
+    ];
+    p.predict_batch_with_accuracy(&vn, &ve, &acc, &mut out);
+    Estimate {
+        name: model.name().to_string(),
+        heading_deg: out.iter().map(|p| p.heading_deg).collect(),
+        std_deg: Some(out.iter().map(|p| p.std_deg).collect()),
+    }
+}
+
+/// Evaluate `model` on `test` with the baselines that apply: atan2, the prior-only
+/// baseline (atan2 clipped to the model's heading range) and, for S1 data, the
+/// Bayes-optimal estimate.
+pub fn evaluate(
+    model: &std::sync::Arc<Model>,
+    data: &DataSpec,
+    test: &[Sample],
+    max_speed: f64,
+) -> Result<Report, eval::EvalError> {
+    let [lo, hi] = model.meta().heading_range_deg;
+    let mut estimates = vec![Estimate::atan2(test)];
+    let full_circle = hi - lo >= 360.0;
+    if !full_circle {
+        estimates.push(Estimate::prior_only(test, lo, hi));
+    }
+    if let DataSpec::S1 { params, .. } = data {
+        estimates.push(BayesS1::new(params).estimates(test).median);
+    }
+    estimates.push(model_estimate(model, test));
+    let cfg = EvalConfig {
+        max_speed,
+        ..EvalConfig::default()
+    };
+    eval::evaluate(&Truth::from_samples(test), &estimates, &cfg)
+}

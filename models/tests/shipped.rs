@@ -1,0 +1,141 @@
+//! The shipped models load, and reproduce the headline numbers committed with them:
+//! the metrics stored in each file's metadata and the overall rows of the committed
+//! reports in `models/reports/` (regenerate both with the commands in models/README.md).
+
+use std::sync::Arc;
+
+use ghnet_models::eval::{Report, ATAN2};
+use ghnet_models::recipes::{self, DataSpec};
+use ghnet_models::Model;
+
+fn close(a: f64, b: f64, what: &str) {
+    assert!(
+        (a - b).abs() <= 1e-6 * (1.0 + b.abs()),
+        "{what}: measured {a}, committed {b}"
+    );
+}
+
+fn check(name: &str) {
+    let model = Arc::new(Model::builtin(name).expect("embedded model loads"));
+    assert_eq!(model.name(), name);
+    let meta = model.meta();
+    let data: DataSpec = serde_json::from_value(meta.training_data.clone()).unwrap();
+    let max_speed = meta.training["eval_max_speed"].as_f64().unwrap();
+    let (_, _, test) = recipes::split(&data.generate());
+    assert_eq!(
+        test.len() as u64,
+        meta.metrics["test_samples"].as_u64().unwrap()
+    );
+    let report = recipes::evaluate(&model, &data, &test, max_speed).unwrap();
+    let overall = report.overall.stats_of(name).unwrap();
+    close(
+        overall.mae_deg,
+        meta.metrics["mae_deg"].as_f64().unwrap(),
+        "metadata mae_deg",
+    );
+    close(
+        overall.rmse_deg,
+        meta.metrics["rmse_deg"].as_f64().unwrap(),
+        "metadata rmse_deg",
+    );
+    close(
+        overall.within_1sigma.unwrap(),
+        meta.metrics["within_1sigma"].as_f64().unwrap(),
+        "metadata within_1sigma",
+    );
+    let committed: Report = serde_json::from_str(
+        &std::fs::read_to_string(format!(
+            "{}/reports/{name}.json",
+            env!("CARGO_MANIFEST_DIR")
+        ))
+        .expect("committed report exists"),
+    )
+    .unwrap();
+    assert_eq!(committed.bins.len(), report.bins.len());
+    for (c, m) in committed
+        .bins
+        .iter()
+        .zip(&report.bins)
+        .chain([(&committed.overall, &report.overall)])
+    {
+        assert_eq!(c.count, m.count, "bin {}", c.label);
+        for est in [name, ATAN2] {
+            let (cs, ms) = (c.stats_of(est).unwrap(), m.stats_of(est).unwrap());
+            close(
+                ms.mae_deg,
+                cs.mae_deg,
+                &format!("{est} MAE in bin {}", c.label),
+            );
+            close(
+                ms.rmse_deg,
+                cs.rmse_deg,
+                &format!("{est} RMSE in bin {}", c.label),
+            );
+        }
+    }
+}
+
+#[test]
+fn paper_s1_reproduces_its_committed_numbers() {
+    check("paper-s1");
+}
+
+#[test]
+fn ghnet_full_reproduces_its_committed_numbers() {
+    check("ghnet-full");
+}
+
+/// The acceptance bars of the shipped models, checked on the committed reports so a
+/// retrained model that misses them cannot be shipped silently.
+#[test]
+fn committed_reports_meet_the_accuracy_bars() {
+    let read = |name: &str| -> Report {
+        serde_json::from_str(
+            &std::fs::read_to_string(format!(
+                "{}/reports/{name}.json",
+                env!("CARGO_MANIFEST_DIR")
+            ))
+            .unwrap(),
+        )
+        .unwrap()
+    };
+    let s1 = read("paper-s1");
+    for row in &s1.bins {
+        let m = row.stats_of("paper-s1").unwrap().mae_deg;
+        let b = row.stats_of("bayes").unwrap().mae_deg;
+        let a = row.stats_of(ATAN2).unwrap().mae_deg;
+        assert!(
+            m <= (1.1 * b).max(b + 0.2),
+            "paper-s1 bin {}: {m} vs bayes {b}",
+            row.label
+        );
+        if row.speed_hi.is_some_and(|hi| hi <= 0.5 + 1e-9) {
+            assert!(
+                m < a,
+                "paper-s1 bin {}: {m} not better than atan2 {a}",
+                row.label
+            );
+        }
+    }
+    let full = read("ghnet-full");
+    for row in full.bins.iter().filter(|r| r.count > 200) {
+        let m = row.stats_of("ghnet-full").unwrap().mae_deg;
+        let a = row.stats_of(ATAN2).unwrap().mae_deg;
+        assert!(
+            m <= 1.02 * a,
+            "ghnet-full bin {}: {m} vs atan2 {a}",
+            row.label
+        );
+    }
+    // σ calibration. ghnet-full's 2σ share is short of 95% for reasons one sample cannot
+    // fix (models/README.md, "Against the bars"); this bar keeps it from getting worse.
+    for (r, name, two_sigma) in [
+        (&s1, "paper-s1", 0.92..=0.98),
+        (&full, "ghnet-full", 0.88..=0.98),
+    ] {
+        let o = r.overall.stats_of(name).unwrap();
+        let (s1c, s2c) = (o.within_1sigma.unwrap(), o.within_2sigma.unwrap());
+        assert!((0.63..=0.73).contains(&s1c), "{name}: {s1c} within 1σ");
+        assert!(two_sigma.contains(&s2c), "{name}: {s2c} within 2σ");
+    }
+}
