@@ -39,7 +39,7 @@ use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Output, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
-use std::sync::{Arc, Once, OnceLock};
+use std::sync::{Arc, Mutex, Once, OnceLock};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use ghnet_client::IpcConfig;
@@ -324,18 +324,20 @@ pub fn test_model() -> &'static TestModel {
 pub type StatsLine = BTreeMap<String, u64>;
 
 /// A running `ghnetd` in a [`Namespace`], stderr (its log) in a file. Killed and
-/// reaped on drop.
+/// reaped on drop. Every wait on it fails at once, with the log, if the daemon
+/// exits unexpectedly (e.g. it cannot load its model).
 #[derive(Debug)]
 pub struct Daemon {
-    child: Option<Child>,
+    // A Mutex so that waits (`&self`, also from helper threads) can check liveness.
+    child: Mutex<Option<Child>>,
     log: PathBuf,
     dir: tempfile::TempDir,
 }
 
 impl Daemon {
     /// Starts `ghnetd` in `ns` with fast housekeeping (`--discovery-interval-ms 50`),
-    /// a stats line every second, the [`test_model`], and `extra` flags (later flags
-    /// win). Returns at once; wait for readiness with [`wait_serving`] or
+    /// a stats line every second, the [`test_model`], and `extra` flags. Returns at
+    /// once; wait for readiness with [`wait_serving`](Self::wait_serving) or
     /// [`wait_for_log`](Self::wait_for_log).
     pub fn start(ns: &Namespace, extra: &[&str]) -> Self {
         // Named like a namespace root, so a sweep after a crashed run removes it too.
@@ -345,12 +347,9 @@ impl Daemon {
             .expect("temp dir");
         let log = dir.path().join("ghnetd.log");
         let mut cmd = Command::new(ghnetd_binary());
-        cmd.args(ns.daemon_args()).args([
-            "--discovery-interval-ms",
-            "50",
-            "--stats-interval-s",
-            "1",
-        ]);
+        cmd.args(ns.daemon_args())
+            .args(["--discovery-interval-ms", "50"])
+            .args(["--stats-interval-s", "1"]);
         if let Some(name) = test_model().flag {
             cmd.args(["--model", name]);
         }
@@ -364,7 +363,7 @@ impl Daemon {
             .spawn()
             .unwrap_or_else(|e| panic!("cannot start {}: {e}", ghnetd_binary().display()));
         Self {
-            child: Some(child),
+            child: Mutex::new(Some(child)),
             log,
             dir,
         }
@@ -380,13 +379,42 @@ impl Daemon {
         std::fs::read_to_string(&self.log).unwrap_or_default()
     }
 
-    /// Waits until the log contains `needle` at least `count` times.
-    pub fn wait_for_log_count(&self, needle: &str, count: usize) {
+    fn child(&self) -> std::sync::MutexGuard<'_, Option<Child>> {
+        // A panicking test thread may poison it; the child is still valid.
+        self.child.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Whether the process is still running (reaps it if it exited).
+    pub fn is_running(&self) -> bool {
+        let mut child = self.child();
+        let child = child.as_mut().expect("not yet stopped");
+        child.try_wait().expect("try_wait").is_none()
+    }
+
+    /// Panics with the exit status and the log if the daemon is no longer running.
+    pub fn assert_running(&self) {
+        let status = {
+            let mut child = self.child();
+            let child = child.as_mut().expect("not yet stopped");
+            child.try_wait().expect("try_wait")
+        };
+        if let Some(status) = status {
+            panic!(
+                "ghnetd exited unexpectedly ({status}); log:\n{}\n(ghnetd binary: {})",
+                self.log(),
+                ghnetd_binary().display()
+            );
+        }
+    }
+
+    /// Polls `cond` until it holds, failing on the watchdog or if the daemon exits.
+    pub fn wait_until(&self, what: &str, mut cond: impl FnMut() -> bool) {
         let t0 = Instant::now();
-        while self.log().matches(needle).count() < count {
+        while !cond() {
+            self.assert_running();
             if t0.elapsed() > WATCHDOG {
                 panic!(
-                    "watchdog: `{needle}` not {count} times in the ghnetd log after {WATCHDOG:?}:\n{}",
+                    "watchdog: no {what} after {WATCHDOG:?}; ghnetd log:\n{}",
                     self.log()
                 );
             }
@@ -394,33 +422,59 @@ impl Daemon {
         }
     }
 
+    /// Waits until `publisher` has a subscriber: the daemon serves its source (static
+    /// sources at start-up, discovered ones within a discovery interval).
+    pub fn wait_serving(&self, publisher: &ghnet_client::VelocityPublisher) {
+        let what = format!("subscriber on {}", publisher.service_name());
+        self.wait_until(&what, || publisher.subscriber_count() >= 1);
+    }
+
+    /// Waits until the log contains `needle` at least `count` times.
+    pub fn wait_for_log_count(&self, needle: &str, count: usize) {
+        let what = format!("`{needle}` {count} times in the log");
+        self.wait_until(&what, || self.log().matches(needle).count() >= count);
+    }
+
     /// Waits until the log contains `needle`.
     pub fn wait_for_log(&self, needle: &str) {
         self.wait_for_log_count(needle, 1);
     }
 
-    /// The process id.
-    pub fn pid(&self) -> u32 {
-        self.child.as_ref().expect("running").id()
+    /// Waits for a counters line for `source` that satisfies `cond` (the daemon logs
+    /// `stats` once a second here, and `source removed` when it drops a source), and
+    /// returns it.
+    pub fn wait_for_stats(&self, source: &str, cond: impl Fn(&StatsLine) -> bool) -> StatsLine {
+        let mut found = None;
+        self.wait_until(&format!("matching counters for {source}"), || {
+            found = self.last_stats(source).filter(&cond);
+            found.is_some()
+        });
+        found.expect("found")
     }
 
-    /// Whether the process is still running (reaps it if it exited).
-    pub fn is_running(&mut self) -> bool {
-        let child = self.child.as_mut().expect("not yet stopped");
-        child.try_wait().expect("try_wait").is_none()
+    /// The counters of the last log line for `source` that has them, if any (see
+    /// [`last_stats_in`]).
+    pub fn last_stats(&self, source: &str) -> Option<StatsLine> {
+        last_stats_in(&self.log(), source)
+    }
+
+    /// The process id.
+    pub fn pid(&self) -> u32 {
+        self.child().as_ref().expect("not yet stopped").id()
     }
 
     /// Sends `signal` (e.g. `libc::SIGTERM`).
     pub fn signal(&self, signal: i32) {
+        let pid = self.pid();
         // SAFETY: kill(2) on our own child, not yet reaped, so its pid is not reused.
-        let rc = unsafe { libc::kill(self.pid() as libc::pid_t, signal) };
-        assert_eq!(rc, 0, "kill({}, {signal})", self.pid());
+        let rc = unsafe { libc::kill(pid as libc::pid_t, signal) };
+        assert_eq!(rc, 0, "kill({pid}, {signal})");
     }
 
     /// Waits for the exit (watchdog: then SIGKILL and panic) and returns the status
     /// and the whole log.
-    pub fn wait_exit(mut self) -> (ExitStatus, String) {
-        let mut child = self.child.take().expect("not yet stopped");
+    pub fn wait_exit(self) -> (ExitStatus, String) {
+        let mut child = self.child().take().expect("not yet stopped");
         let t0 = Instant::now();
         loop {
             if let Some(status) = child.try_wait().expect("try_wait") {
@@ -446,45 +500,16 @@ impl Daemon {
 
     /// `kill -9` and reap (so its iceoryx2 liveness lock is released, like a real
     /// crash once init reaps it). Its iceoryx2 resources stay behind.
-    pub fn kill9(mut self) {
-        let mut child = self.child.take().expect("not yet stopped");
+    pub fn kill9(self) {
+        let mut child = self.child().take().expect("not yet stopped");
         child.kill().expect("SIGKILL");
         child.wait().expect("reap");
-    }
-
-    /// The counters of the last log line for `source` that has them, if any (see
-    /// [`last_stats_in`]).
-    pub fn last_stats(&self, source: &str) -> Option<StatsLine> {
-        last_stats_in(&self.log(), source)
-    }
-
-    /// Waits for a counters line for `source` that satisfies `cond` (the daemon logs
-    /// `stats` once a second here, and `source removed` when it drops a source), and
-    /// returns it.
-    pub fn wait_for_stats(&self, source: &str, cond: impl Fn(&StatsLine) -> bool) -> StatsLine {
-        let mut last = None;
-        let t0 = Instant::now();
-        loop {
-            if let Some(s) = self.last_stats(source) {
-                if cond(&s) {
-                    return s;
-                }
-                last = Some(s);
-            }
-            if t0.elapsed() > WATCHDOG {
-                panic!(
-                    "watchdog: no matching stats line for {source} after {WATCHDOG:?}; last: {last:?}\nlog:\n{}",
-                    self.log()
-                );
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
     }
 }
 
 impl Drop for Daemon {
     fn drop(&mut self) {
-        if let Some(mut child) = self.child.take() {
+        if let Some(mut child) = self.child().take() {
             let _ = child.kill();
             let _ = child.wait();
         }
@@ -504,15 +529,6 @@ pub fn last_stats_in(log: &str, source: &str) -> Option<StatsLine> {
                 .filter_map(|(k, v)| Some((k.to_owned(), v.parse().ok()?)))
                 .collect()
         })
-}
-
-/// Waits until `publisher` has a subscriber: the daemon serves its source (static
-/// sources at start-up, discovered ones within a discovery interval).
-pub fn wait_serving(publisher: &ghnet_client::VelocityPublisher) {
-    wait_until(
-        &format!("subscriber on {}", publisher.service_name()),
-        || publisher.subscriber_count() >= 1,
-    );
 }
 
 /// Runs `ghnetd args…` to completion (for start-up failures), with a watchdog.

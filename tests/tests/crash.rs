@@ -58,7 +58,7 @@ fn daemon_kill9_while_publishing_then_restart_resumes() {
 fn publisher_kill9_daemon_goes_on_and_a_new_publisher_is_served() {
     let ns = Namespace::new();
     let ipc = ns.ipc();
-    let mut daemon = Daemon::start(&ns, &[]);
+    let daemon = Daemon::start(&ns, &[]);
     let headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
 
     let publisher = ChildPublisher::spawn(TEST_PUBLISHER, &ns, "veh", 0, 200);

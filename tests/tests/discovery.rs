@@ -5,7 +5,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use ghnet_client::{HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
-use ghnet_tests::{now_ns, wait_serving, wait_until, Daemon, Namespace, WATCHDOG};
+use ghnet_tests::{now_ns, wait_until, Daemon, Namespace, WATCHDOG};
 
 fn ping(gnss: &VelocityPublisher, headings: &HeadingSubscriber, seq: u64) {
     gnss.send(VelocitySample::new(now_ns(), seq, 0.0, 2.0, 0.0))
@@ -25,14 +25,14 @@ fn source_appearing_at_run_time_is_served() {
 
     let headings = HeadingSubscriber::new(&ipc, "late").unwrap();
     let gnss = VelocityPublisher::new(&ipc, "late").unwrap();
-    wait_serving(&gnss);
+    daemon.wait_serving(&gnss);
     ping(&gnss, &headings, 0);
     daemon.wait_for_log("source=late");
 
     // A second source while the first is served (the daemon re-arms its wait set).
     let headings2 = HeadingSubscriber::new(&ipc, "later").unwrap();
     let gnss2 = VelocityPublisher::new(&ipc, "later").unwrap();
-    wait_serving(&gnss2);
+    daemon.wait_serving(&gnss2);
     for seq in 1..20 {
         ping(&gnss, &headings, seq);
         ping(&gnss2, &headings2, seq);
@@ -75,6 +75,7 @@ fn two_sources_at_once_never_cross() {
             first_seq: 1 << 40,
         },
     ];
+    let daemon = &daemon; // shared with the vehicle threads
     std::thread::scope(|scope| {
         for v in &vehicles {
             let ipc = ipc.clone();
@@ -106,7 +107,7 @@ fn two_sources_at_once_never_cross() {
                     });
                     ready_rx.recv().unwrap();
                     let gnss = VelocityPublisher::new(&ipc, v.name).unwrap();
-                    wait_serving(&gnss); // discovered
+                    daemon.wait_serving(&gnss); // discovered
                     for k in 0..COUNT {
                         wait_until("answers to catch up", || {
                             k < answered.load(Ordering::Acquire) + WINDOW

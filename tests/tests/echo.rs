@@ -3,7 +3,7 @@
 use ghnet_client::{HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
 use ghnet_models::sim::{simulate_realistic, RealisticParams};
 use ghnet_models::{Predictor, Status, StatusPolicy};
-use ghnet_tests::{close, now_ns, test_model, wait_serving, Daemon, Namespace, WATCHDOG};
+use ghnet_tests::{close, now_ns, test_model, Daemon, Namespace, WATCHDOG};
 
 /// models' status → the wire status the daemon must send.
 fn wire(s: Status) -> HeadingStatus {
@@ -22,7 +22,7 @@ fn heading_equals_in_process_model_and_echoes_seq_and_timestamp() {
     let daemon = Daemon::start(&ns, &["--source", "echo", "--discovery", "false"]);
     let headings = HeadingSubscriber::new(&ipc, "echo").unwrap();
     let gnss = VelocityPublisher::new(&ipc, "echo").unwrap();
-    wait_serving(&gnss);
+    daemon.wait_serving(&gnss);
 
     // Every compass direction, the status boundaries, and a realistic track.
     let mut inputs: Vec<(f32, f32)> = vec![

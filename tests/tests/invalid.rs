@@ -1,16 +1,16 @@
 //! Invalid samples are answered `InvalidInput`, counted, and do not hurt the daemon.
 
 use ghnet_client::{flags, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
-use ghnet_tests::{now_ns, wait_serving, Daemon, Namespace, WATCHDOG};
+use ghnet_tests::{now_ns, Daemon, Namespace, WATCHDOG};
 
 #[test]
 fn invalid_samples_are_answered_invalid_counted_and_the_daemon_goes_on() {
     let ns = Namespace::new();
     let ipc = ns.ipc();
-    let mut daemon = Daemon::start(&ns, &["--source", "inv", "--discovery", "false"]);
+    let daemon = Daemon::start(&ns, &["--source", "inv", "--discovery", "false"]);
     let headings = HeadingSubscriber::new(&ipc, "inv").unwrap();
     let gnss = VelocityPublisher::new(&ipc, "inv").unwrap();
-    wait_serving(&gnss);
+    daemon.wait_serving(&gnss);
 
     let t0 = now_ns();
     let at =

@@ -3,7 +3,7 @@
 use std::time::Duration;
 
 use ghnet_client::{HeadingSubscriber, VelocityPublisher, VelocitySample};
-use ghnet_tests::{last_stats_in, now_ns, wait_serving, Daemon, Namespace, WATCHDOG};
+use ghnet_tests::{last_stats_in, now_ns, Daemon, Namespace, WATCHDOG};
 
 #[test]
 fn sigterm_answers_what_was_received_and_exits_zero() {
@@ -12,7 +12,7 @@ fn sigterm_answers_what_was_received_and_exits_zero() {
     let daemon = Daemon::start(&ns, &["--source", "term", "--discovery", "false"]);
     let headings = HeadingSubscriber::new(&ipc, "term").unwrap();
     let gnss = VelocityPublisher::new(&ipc, "term").unwrap();
-    wait_serving(&gnss);
+    daemon.wait_serving(&gnss);
 
     // One round trip first. It also connects our subscriber to the daemon's heading
     // publisher: iceoryx2 connects a subscriber on `receive`, and answers of a
@@ -64,7 +64,7 @@ fn sigterm_when_idle_with_discovered_sources_exits_zero() {
     let ipc = ns.ipc();
     let daemon = Daemon::start(&ns, &[]);
     let gnss = VelocityPublisher::new(&ipc, "idle").unwrap();
-    wait_serving(&gnss);
+    daemon.wait_serving(&gnss);
     let (status, log) = daemon.terminate();
     assert_eq!(status.code(), Some(0), "{status:?}\n{log}");
     assert_eq!(gnss.subscriber_count(), 0, "ports released on exit");

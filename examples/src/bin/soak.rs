@@ -64,15 +64,13 @@ fn run(args: Args) -> anyhow::Result<bool> {
 
     // Collectors first, so no heading is published before someone listens.
     let (startup, idle) = (Duration::from_secs(20), Duration::from_secs(2));
-    let collectors = (names
-        .iter()
-        .map(|n| Collector::start(&ipc, n, total, startup, idle)))
-    .collect::<anyhow::Result<Vec<_>>>()?;
+    let collectors: Vec<Collector> = (names.iter())
+        .map(|n| Collector::start(&ipc, n, total, startup, idle))
+        .collect::<anyhow::Result<_>>()?;
     let node = pacing_node(&ipc, "ghnet-example-soak")?;
-    let pubs = (names
-        .iter()
-        .map(|n| VelocityPublisher::with_node(&node, &ipc, n)))
-    .collect::<Result<Vec<_>, _>>()?;
+    let pubs: Vec<VelocityPublisher> = (names.iter())
+        .map(|n| VelocityPublisher::with_node(&node, &ipc, n))
+        .collect::<Result<_, _>>()?;
     let patience = Duration::from_secs(10);
     wait_for_subscriber(&node, &pubs.iter().collect::<Vec<_>>(), patience, || {
         daemon.as_mut().is_some_and(|d| d.has_exited())
@@ -105,13 +103,11 @@ fn run(args: Args) -> anyhow::Result<bool> {
     if let Some(d) = daemon {
         println!("ghnetd exited: {}", d.stop(Duration::from_secs(10))?);
     }
-    println!(
-        "{}",
-        if ok {
-            "PASS: every sample answered exactly once"
-        } else {
-            "FAIL"
-        }
-    );
+    let verdict = if ok {
+        "PASS: every sample answered exactly once"
+    } else {
+        "FAIL"
+    };
+    println!("{verdict}");
     Ok(ok)
 }
