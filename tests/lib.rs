@@ -17,6 +17,17 @@
 //!   so tests can compare against an in-process computation.
 //! - [`wait_until`], [`WATCHDOG`] — bounded waits; a test never asserts a duration.
 //!
+//! # Running
+//!
+//! ```text
+//! cargo test --workspace                                # builds ghnetd too (CI does this)
+//! cargo build -p ghnetd && cargo test -p ghnet-tests    # just these tests
+//! GHNETD_BIN=/path/to/ghnetd cargo test -p ghnet-tests  # another daemon build
+//! ```
+//!
+//! The tests run in parallel with the default test threads and take about two
+//! seconds on two cores; waits are bounded by [`WATCHDOG`], never asserted.
+//!
 //! # Rules every test follows
 //!
 //! - Its own [`Namespace`] (tests run in parallel; a shared namespace collides on
