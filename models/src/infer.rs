@@ -54,6 +54,23 @@ fn parse_field(field: Option<&[u8]>) -> f32 {
         .unwrap_or(f32::NAN)
 }
 
+/// Format a finite value with four decimals into `buf` (`{:.4}` through `fmt` costs a
+/// tenth of a day-long replay; this is integer formatting with itoa).
+fn fixed4(x: f32, buf: &mut Vec<u8>) -> &[u8] {
+    buf.clear();
+    let v = (x as f64 * 10_000.0).round() as i64;
+    if v < 0 {
+        buf.push(b'-');
+    }
+    let v = v.unsigned_abs();
+    let mut ib = itoa::Buffer::new();
+    buf.extend_from_slice(ib.format(v / 10_000).as_bytes());
+    buf.push(b'.');
+    let frac = ib.format(v % 10_000 + 10_000).as_bytes(); // "1xxxx": keeps leading zeros
+    buf.extend_from_slice(&frac[1..]);
+    buf
+}
+
 /// Stream `input` to `output`, answering every row.
 pub fn run(
     predictor: &mut Predictor,
@@ -96,7 +113,7 @@ pub fn run(
         BLOCK
     ];
     let mut summary = InferSummary::default();
-    let mut num = String::with_capacity(32);
+    let mut num = Vec::with_capacity(32);
     loop {
         let mut n = 0;
         while n < BLOCK && rdr.read_byte_record(&mut records[n])? {
@@ -116,13 +133,14 @@ pub fn run(
                 rec.push_field(b"");
                 rec.push_field(b"");
             } else {
-                use std::fmt::Write as _;
-                num.clear();
-                let _ = write!(num, "{:.4}", p.heading_deg);
-                rec.push_field(num.as_bytes());
-                num.clear();
-                let _ = write!(num, "{:.4}", p.std_deg);
-                rec.push_field(num.as_bytes());
+                // [0, 360) must survive rounding: 359.99996 prints as 0.0000, not 360.0000.
+                let h = if p.heading_deg >= 359.999_95 {
+                    0.0
+                } else {
+                    p.heading_deg
+                };
+                rec.push_field(fixed4(h, &mut num));
+                rec.push_field(fixed4(p.std_deg, &mut num));
             }
             rec.push_field(p.status.as_str().as_bytes());
             wtr.write_byte_record(rec)?;
@@ -210,6 +228,22 @@ mod tests {
             "a noisier receiver must give a larger σ: {std:?}"
         );
         assert!(std[2].is_finite() && std[2] > 0.0);
+    }
+
+    #[test]
+    fn fixed_point_formatting() {
+        let mut b = Vec::new();
+        for (x, want) in [
+            (0.0f32, "0.0000"),
+            (1.5, "1.5000"),
+            (359.99996, "360.0000"),
+            (12.00049, "12.0005"),
+            (0.0001, "0.0001"),
+            (-3.25, "-3.2500"),
+            (103.92305, "103.9230"),
+        ] {
+            assert_eq!(std::str::from_utf8(fixed4(x, &mut b)).unwrap(), want, "{x}");
+        }
     }
 
     #[test]
