@@ -210,3 +210,62 @@ impl Network {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gelu::gelu_reference;
+
+    /// A two-channel, one-conv network small enough to compute by hand.
+    #[test]
+    fn forward_matches_hand_computation() {
+        let arch = Arch {
+            input: 2,
+            conv: vec![2],
+            fc: vec![1],
+            output: 1,
+        };
+        let mut p = ParamSet::zeros(&arch);
+        p.get_mut("conv1.weight")
+            .copy_from_slice(&[1.0, 2.0, -1.0, 0.5]); // [[1,2],[-1,0.5]]
+        p.get_mut("conv1.bias").copy_from_slice(&[0.5, -0.25]);
+        p.get_mut("bn1.weight").copy_from_slice(&[2.0, 1.0]);
+        p.get_mut("bn1.bias").copy_from_slice(&[0.0, 1.0]);
+        p.get_mut("bn1.running_mean").copy_from_slice(&[1.0, 0.0]);
+        p.get_mut("bn1.running_var").copy_from_slice(&[4.0, 1.0]);
+        p.get_mut("fc1.weight").copy_from_slice(&[3.0, -1.0]);
+        p.get_mut("fc1.bias").copy_from_slice(&[0.1]);
+        p.get_mut("fc2.weight").copy_from_slice(&[2.0]);
+        p.get_mut("fc2.bias").copy_from_slice(&[-1.0]);
+        let x = [0.3f64, -0.2];
+        // conv: z = W x + b
+        let z = [
+            1.0 * x[0] + 2.0 * x[1] + 0.5,
+            -1.0 * x[0] + 0.5 * x[1] - 0.25,
+        ];
+        // batch norm (eval): γ (z − μ)/√(σ² + ε) + β
+        let eps = BN_EPS as f64;
+        let y = [
+            2.0 * (z[0] - 1.0) / (4.0 + eps).sqrt(),
+            (z[1] - 0.0) / (1.0 + eps).sqrt() + 1.0,
+        ];
+        let a = [gelu_reference(y[0]), gelu_reference(y[1])];
+        let f1 = 3.0 * a[0] - a[1] + 0.1;
+        let expect = 2.0 * f1 - 1.0;
+        let net = Network::fold(&p);
+        let mut s = net.scratch(4);
+        let mut out = [0.0f32];
+        net.forward_one(&[x[0] as f32, x[1] as f32], &mut out, &mut s);
+        assert!(
+            (out[0] as f64 - expect).abs() < 1e-5,
+            "{} vs {expect}",
+            out[0]
+        );
+        let xm = faer::Mat::from_fn(2, 3, |i, _| x[i] as f32);
+        let mut om = faer::Mat::zeros(1, 3);
+        net.forward(xm.as_ref(), om.as_mut(), &mut s);
+        for j in 0..3 {
+            assert!((om[(0, j)] as f64 - expect).abs() < 1e-5);
+        }
+    }
+}
