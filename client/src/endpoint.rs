@@ -379,12 +379,18 @@ impl<T: Message> Receiver<T> {
     }
 
     /// Sleeps on the event service until a message is there or `timeout` has passed
-    /// (`Ok(None)`).
+    /// (`Ok(None)`). Returns [`RecvError::Interrupted`] once SIGINT/SIGTERM has been
+    /// recorded ([`crate::termination_requested`]) and no message is waiting: iceoryx2
+    /// resumes its wait after a signal, so this is checked on every wake-up and at the
+    /// deadline — loop on `recv_timeout` with a short timeout to stay Ctrl-C-aware.
     pub fn recv_timeout(&self, timeout: Duration) -> Result<Option<T>, RecvError> {
         let deadline = Instant::now() + timeout;
         loop {
             if let Some(v) = self.receive()? {
                 return Ok(Some(v));
+            }
+            if crate::termination_requested() {
+                return Err(RecvError::Interrupted);
             }
             let now = Instant::now();
             if now >= deadline {
@@ -396,7 +402,9 @@ impl<T: Message> Receiver<T> {
         }
     }
 
-    /// Sleeps on the event service until a message is there.
+    /// Sleeps on the event service until a message is there. It does not return on
+    /// Ctrl-C (iceoryx2 resumes the wait after a signal): programs that must stop on a
+    /// signal use [`Receiver::recv_timeout`] in a loop.
     pub fn recv(&self) -> Result<T, RecvError> {
         loop {
             if let Some(v) = self.receive()? {
