@@ -239,10 +239,7 @@ mod tests {
         p.get_mut("fc2.bias").copy_from_slice(&[-1.0]);
         let x = [0.3f64, -0.2];
         // conv: z = W x + b
-        let z = [
-            1.0 * x[0] + 2.0 * x[1] + 0.5,
-            -1.0 * x[0] + 0.5 * x[1] - 0.25,
-        ];
+        let z = [x[0] + 2.0 * x[1] + 0.5, -x[0] + 0.5 * x[1] - 0.25];
         // batch norm (eval): γ (z − μ)/√(σ² + ε) + β
         let eps = BN_EPS as f64;
         let y = [
