@@ -18,8 +18,11 @@ fn child_polling_publisher() {
     };
     let (prefix, root) = spec.split_once('|').unwrap();
     let gnss = VelocityPublisher::new(&IpcConfig::isolated(prefix, root).unwrap(), "sig").unwrap();
+    gnss.send(VelocitySample::new(0, 0, 1.0, 0.0, 0.0)).unwrap();
+    // Only now is iceoryx2's capturing handler surely installed; a SIGINT before this
+    // line would still kill the process the default way.
     println!("ready");
-    let mut seq = 0;
+    let mut seq = 1;
     while !ghnet_client::termination_requested() {
         gnss.send(VelocitySample::new(0, seq, 1.0, 0.0, 0.0))
             .unwrap();
@@ -47,15 +50,29 @@ fn sigint_stops_a_polling_publisher() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    // Wait for the publisher's service to exist, then interrupt it.
-    let sub = ghnet_client::VelocitySubscriber::new(&ns.ipc(), "sig").unwrap();
-    let t0 = Instant::now();
-    while sub.publisher_count() == 0 {
-        assert!(
-            t0.elapsed() < Duration::from_secs(20),
-            "child never started"
-        );
-        std::thread::sleep(Duration::from_millis(10));
+    // Wait for the child to say it has sent (the publisher port alone appears before
+    // iceoryx2 installs its handler), then interrupt it.
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut all = String::new();
+        let mut line = String::new();
+        while std::io::BufRead::read_line(&mut out, &mut line).unwrap_or(0) > 0 {
+            if line.trim() == "ready" {
+                let _ = tx.send(None);
+            }
+            all.push_str(&line);
+            line.clear();
+        }
+        let _ = tx.send(Some(all));
+    });
+    match rx.recv_timeout(Duration::from_secs(20)) {
+        Ok(None) => {}
+        other => {
+            let _ = child.kill();
+            let _ = child.wait(); // reap
+            panic!("child never became ready: {other:?}");
+        }
     }
     assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
     let t0 = Instant::now();
@@ -70,8 +87,11 @@ fn sigint_stops_a_polling_publisher() {
         }
         std::thread::sleep(Duration::from_millis(5));
     };
-    let mut stdout = String::new();
-    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut stdout).unwrap();
+    let stdout = rx
+        .recv_timeout(Duration::from_secs(20))
+        .ok()
+        .flatten()
+        .unwrap_or_default();
     assert!(status.success(), "{status:?}");
     assert!(stdout.contains("stopped cleanly"), "{stdout}");
 }
