@@ -351,13 +351,31 @@ impl Daemon {
     /// once; wait for readiness with [`wait_serving`](Self::wait_serving) or
     /// [`wait_for_log`](Self::wait_for_log).
     pub fn start(ns: &Namespace, extra: &[&str]) -> Self {
+        Self::start_wrapped(ns, &[], extra)
+    }
+
+    /// [`start`](Self::start) under a wrapper command that execs its arguments, e.g.
+    /// `["ip", "netns", "exec", "<name>"]` to run the daemon in a network namespace.
+    pub fn start_wrapped(ns: &Namespace, wrapper: &[&str], extra: &[&str]) -> Self {
         // Named like a namespace root, so a sweep after a crashed run removes it too.
         let dir = tempfile::Builder::new()
             .prefix(&format!("ghnet-it-{TAG}{}xlog", std::process::id()))
             .tempdir()
             .expect("temp dir");
         let log = dir.path().join("ghnetd.log");
-        let mut cmd = Command::new(ghnetd_binary());
+        let mut cmd = match wrapper.split_first() {
+            Some((program, args)) => {
+                let mut c = Command::new(program);
+                c.args(args).arg(ghnetd_binary());
+                c
+            }
+            None => Command::new(ghnetd_binary()),
+        };
+        // Zenoh on any free loopback port (tests run in parallel) unless `extra` says
+        // where; the port is in the log, see `zenoh_endpoint`.
+        if !extra.contains(&"--zenoh-listen") {
+            cmd.args(["--zenoh-listen", "tcp/127.0.0.1:0"]);
+        }
         cmd.args(ns.daemon_args())
             .args(["--discovery-interval-ms", "50"])
             .args(["--stats-interval-s", "1"]);
@@ -467,6 +485,23 @@ impl Daemon {
     /// [`last_stats_in`]).
     pub fn last_stats(&self, source: &str) -> Option<StatsLine> {
         last_stats_in(&self.log(), source)
+    }
+
+    /// The first endpoint the daemon's Zenoh session listens on, e.g.
+    /// `tcp/127.0.0.1:40123` (the real port when it was started with port 0), read
+    /// from its `zenoh session open` log line; waits for that line.
+    pub fn zenoh_endpoint(&self) -> String {
+        self.wait_for_log("zenoh session open");
+        let log = self.log();
+        let line = log
+            .lines()
+            .find(|l| l.contains("zenoh session open"))
+            .expect("found");
+        let rest = line
+            .split_once("listening=[\"")
+            .unwrap_or_else(|| panic!("no listening endpoints in `{line}`"))
+            .1;
+        rest.split('"').next().expect("an endpoint").to_owned()
     }
 
     /// The process id.
@@ -612,6 +647,39 @@ impl Drop for ChildPublisher {
             let _ = child.wait();
         }
     }
+}
+
+/// A loopback-only Zenoh peer session connected to `endpoint` (a daemon's, see
+/// [`Daemon::zenoh_endpoint`]), listening nowhere, no scouting; returns once the
+/// connection is up.
+pub fn zenoh_session(endpoint: &str) -> ghnet_client::zenoh::Session {
+    use ghnet_client::zenoh::Wait;
+    let config = ghnet_client::peer_config(&[], &[endpoint.to_owned()]).expect("valid config");
+    let session = ghnet_client::zenoh::open(config)
+        .wait()
+        .expect("zenoh session");
+    wait_until(&format!("zenoh connection to {endpoint}"), || {
+        session.info().peers_zid().wait().next().is_some()
+    });
+    session
+}
+
+/// Returns once the daemon on `session` answers its model query. The query travels
+/// after every declaration made before it on the same link, so afterwards the daemon
+/// knows this session's subscribers and no heading is missed.
+pub fn zenoh_barrier(session: &ghnet_client::zenoh::Session, ipc: &IpcConfig) {
+    use ghnet_client::zenoh::Wait;
+    let key = ipc.zenoh_model_key();
+    wait_until(&format!("an answer on {key}"), || {
+        let replies = session.get(key.as_str()).wait().expect("query");
+        matches!(replies.recv_timeout(WATCHDOG), Ok(Some(r)) if r.result().is_ok())
+    });
+}
+
+/// A service prefix no other test (or run) uses, for Zenoh key isolation.
+pub fn unique_prefix(tag: &str) -> String {
+    let n = NAMESPACES.fetch_add(1, Ordering::Relaxed);
+    format!("{tag}{}x{n}", std::process::id())
 }
 
 /// `|a - b| <= 1e-6 · max(1, |b|)`, both NaN counting as equal, and headings that

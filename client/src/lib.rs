@@ -19,6 +19,11 @@
 //!   sleep instead of polling. Aliases: [`VelocityPublisher`], [`HeadingSubscriber`]
 //!   (the two a user needs) and [`VelocitySubscriber`], [`HeadingPublisher`] (the
 //!   daemon's side).
+//! - [`codec`] — [`encode_zenoh`]/[`decode_zenoh`]: a [`HeadingEstimate`] as the
+//!   Zenoh payload (bincode 2, fixed-width little-endian: the same 64 bytes as the
+//!   iceoryx2 layout); bad bytes are a [`DecodeError`], never a panic.
+//! - [`remote`] — [`ZenohHeadingSubscriber`], the `@ghnetd` key names (presence,
+//!   stats, model) and [`peer_config`], the loopback-only Zenoh config.
 //! - [`signals`] — [`termination_requested`]: Ctrl-C handling for programs using the
 //!   helpers (iceoryx2 captures SIGINT/SIGTERM once it is in use).
 //! - [`testing`] — [`testing::TestNamespace`], a private iceoryx2 namespace per test
@@ -49,18 +54,22 @@
 
 #![warn(missing_docs)]
 
+pub mod codec;
 pub mod endpoint;
 pub mod names;
+pub mod remote;
 pub mod settings;
 pub mod signals;
 pub mod testing;
 pub mod wire;
 
+pub use codec::{decode_zenoh, encode_zenoh, DecodeError, ZENOH_HEADING_LEN};
 pub use endpoint::{
     HeadingPublisher, HeadingSubscriber, OpenError, Receiver, RecvError, SendError, Sender,
     VelocityPublisher, VelocitySubscriber,
 };
 pub use names::{validate_source_name, IpcConfig, NameError, DEFAULT_PREFIX};
+pub use remote::{peer_config, ZenohHeadingSubscriber, ZenohOpenError, DEFAULT_ZENOH_PORT};
 pub use settings::{Message, ServiceSettings, SERVICE_SETTINGS};
 pub use signals::termination_requested;
 pub use wire::{flags, CodecError, HeadingEstimate, HeadingStatus, VelocitySample, MODEL_NAME_LEN};
@@ -68,3 +77,6 @@ pub use wire::{flags, CodecError, HeadingEstimate, HeadingStatus, VelocitySample
 /// The iceoryx2 crate this wire is built on, re-exported so users (and the daemon)
 /// name exactly the pinned version's types, e.g. `ghnet_client::iceoryx2::config::Config`.
 pub use iceoryx2;
+/// The Zenoh crate of the Zenoh output (pinned `=1.10.2`, tcp and unix-socket
+/// transports only), re-exported so consumers open sessions with the same version.
+pub use zenoh;

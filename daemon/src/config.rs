@@ -31,6 +31,8 @@ pub struct Config {
     pub model: ModelSection,
     /// Periodic counters in the log.
     pub stats: StatsSection,
+    /// The Zenoh output, presence token and queryables.
+    pub zenoh: ZenohSection,
 }
 
 /// `[ipc]`
@@ -133,6 +135,102 @@ impl Default for StatsSection {
     }
 }
 
+/// `[zenoh]`
+///
+/// ghnetd's keys are applied on top of `config_file` (a standard Zenoh json5 config),
+/// so the loopback-only defaults hold unless they are changed here; everything
+/// without a key here (TLS, ACL, timeouts, ...) comes from the file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ZenohSection {
+    /// Publish every heading on Zenoh too, and declare presence and queryables.
+    pub enabled: bool,
+    /// Zenoh mode: `peer` (default; consumers connect directly), `client` (connect to
+    /// a router, listen nowhere) or `router`.
+    pub mode: String,
+    /// Endpoints to listen on. Loopback only by default; port 0 picks a free port
+    /// (the log says which). An empty list listens nowhere.
+    pub listen: Vec<String>,
+    /// Endpoints to connect to, e.g. a Zenoh router `tcp/10.0.0.1:7447`. Empty: keep
+    /// the file's (none without a file).
+    pub connect: Vec<String>,
+    /// Zenoh multicast scouting (UDP 224.0.0.224:7446). Off: ghnetd announces itself
+    /// to nobody.
+    pub multicast_scouting: bool,
+    /// Zenoh gossip scouting (peers telling each other about peers). Off by default.
+    pub gossip: bool,
+    /// A standard Zenoh json5 config file for everything else (router connection,
+    /// TLS, access control). Unset: Zenoh's defaults under the keys above.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub config_file: Option<PathBuf>,
+}
+
+impl Default for ZenohSection {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            mode: "peer".to_owned(),
+            listen: vec![format!(
+                "tcp/127.0.0.1:{}",
+                ghnet_client::DEFAULT_ZENOH_PORT
+            )],
+            connect: Vec::new(),
+            multicast_scouting: false,
+            gossip: false,
+            config_file: None,
+        }
+    }
+}
+
+impl ZenohSection {
+    /// The Zenoh session config: `config_file` (or Zenoh's defaults), then these keys.
+    /// Errors name the key.
+    pub fn zenoh_config(&self) -> anyhow::Result<ghnet_client::zenoh::Config> {
+        use ghnet_client::zenoh;
+        let mut c = match &self.config_file {
+            Some(path) => zenoh::Config::from_file(path)
+                .map_err(|e| anyhow::anyhow!("zenoh.config_file {}: {e}", path.display()))?,
+            None => zenoh::Config::default(),
+        };
+        let set = |c: &mut zenoh::Config, key: &str, what: &str, json: String| {
+            c.insert_json5(key, &json)
+                .map_err(|e| anyhow::anyhow!("{what}: {json}: {e}"))
+        };
+        set(&mut c, "mode", "zenoh.mode", format!("\"{}\"", self.mode))?;
+        set(
+            &mut c,
+            "listen/endpoints",
+            "zenoh.listen",
+            json_list(&self.listen),
+        )?;
+        if !self.connect.is_empty() || self.config_file.is_none() {
+            set(
+                &mut c,
+                "connect/endpoints",
+                "zenoh.connect",
+                json_list(&self.connect),
+            )?;
+        }
+        set(
+            &mut c,
+            "scouting/multicast/enabled",
+            "zenoh.multicast_scouting",
+            self.multicast_scouting.to_string(),
+        )?;
+        set(
+            &mut c,
+            "scouting/gossip/enabled",
+            "zenoh.gossip",
+            self.gossip.to_string(),
+        )?;
+        Ok(c)
+    }
+}
+
+fn json_list(items: &[String]) -> String {
+    serde_json::to_string(items).expect("strings always serialise")
+}
+
 /// Command-line flags. Every flag overrides the matching config key.
 #[derive(Debug, Clone, Default, Parser)]
 #[command(
@@ -189,6 +287,23 @@ pub struct Cli {
     /// stats.interval_s: seconds between counter log lines, 0 = never.
     #[arg(long, value_name = "S")]
     pub stats_interval_s: Option<u64>,
+    /// zenoh.enabled: also publish headings on Zenoh.
+    #[arg(long = "zenoh", value_name = "BOOL", num_args = 1)]
+    pub zenoh_enabled: Option<bool>,
+    /// zenoh.mode: peer, client or router.
+    #[arg(long, value_name = "MODE")]
+    pub zenoh_mode: Option<String>,
+    /// zenoh.listen: Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable;
+    /// replaces the file's list).
+    #[arg(long = "zenoh-listen", value_name = "ENDPOINT")]
+    pub zenoh_listen: Vec<String>,
+    /// zenoh.connect: Zenoh endpoint to connect to, e.g. a router (repeatable).
+    #[arg(long = "zenoh-connect", value_name = "ENDPOINT")]
+    pub zenoh_connect: Vec<String>,
+    /// zenoh.config_file: standard Zenoh json5 config for everything else (TLS, ACL,
+    /// router); ghnetd's zenoh keys still apply on top.
+    #[arg(long = "zenoh-config", value_name = "FILE")]
+    pub zenoh_config: Option<PathBuf>,
 }
 
 impl Config {
@@ -263,6 +378,21 @@ impl Config {
         if let Some(v) = cli.stats_interval_s {
             self.stats.interval_s = v;
         }
+        if let Some(v) = cli.zenoh_enabled {
+            self.zenoh.enabled = v;
+        }
+        if let Some(v) = &cli.zenoh_mode {
+            self.zenoh.mode = v.clone();
+        }
+        if !cli.zenoh_listen.is_empty() {
+            self.zenoh.listen = cli.zenoh_listen.clone();
+        }
+        if !cli.zenoh_connect.is_empty() {
+            self.zenoh.connect = cli.zenoh_connect.clone();
+        }
+        if let Some(v) = &cli.zenoh_config {
+            self.zenoh.config_file = Some(v.clone());
+        }
     }
 
     /// Checks every value; the error names the key to fix. (The model file is checked
@@ -318,6 +448,16 @@ impl Config {
                 m.stationary_speed,
                 m.max_speed
             );
+        }
+        if !["peer", "client", "router"].contains(&self.zenoh.mode.as_str()) {
+            bail!(
+                "zenoh.mode: `{}` is not one of peer, client, router",
+                self.zenoh.mode
+            );
+        }
+        if self.zenoh.enabled {
+            // Parses the file and every endpoint now, so a typo is a start-up error.
+            self.zenoh.zenoh_config()?;
         }
         Ok(())
     }
@@ -503,6 +643,12 @@ mod tests {
         assert!(invalid(|c| c.model.stationary_speed = 200.0).starts_with("model.stationary_speed"));
         assert!(invalid(|c| c.model.name = " ".into()).starts_with("model.name"));
         assert!(invalid(|c| c.stats.interval_s = 100_000).starts_with("stats.interval_s"));
+        assert!(invalid(|c| c.zenoh.mode = "server".into()).starts_with("zenoh.mode"));
+        assert!(invalid(|c| c.zenoh.listen = vec!["nonsense".into()]).starts_with("zenoh.listen"));
+        assert!(
+            invalid(|c| c.zenoh.config_file = Some("/nonexistent.json5".into()))
+                .starts_with("zenoh.config_file")
+        );
         assert!(
             invalid(|c| c.ipc.iceoryx2_root_path = Some("relative".into()))
                 .contains("iceoryx2_root_path")
@@ -512,6 +658,32 @@ mod tests {
                 .contains("iceoryx2_global_prefix")
         );
         Config::default().validate().unwrap();
+    }
+
+    #[test]
+    fn zenoh_flags_and_loopback_defaults() {
+        let c = Config::default().zenoh.zenoh_config().unwrap();
+        assert_eq!(c.get_json("scouting/multicast/enabled").unwrap(), "false");
+        assert_eq!(c.get_json("scouting/gossip/enabled").unwrap(), "false");
+        assert!(c
+            .get_json("listen/endpoints")
+            .unwrap()
+            .contains("tcp/127.0.0.1:7447"));
+        let c = Config::from_cli(&cli(&[
+            "--zenoh",
+            "false",
+            "--zenoh-mode",
+            "client",
+            "--zenoh-listen",
+            "tcp/127.0.0.1:0",
+            "--zenoh-connect",
+            "tcp/127.0.0.1:7448",
+        ]))
+        .unwrap();
+        assert!(!c.zenoh.enabled);
+        assert_eq!(c.zenoh.mode, "client");
+        assert_eq!(c.zenoh.listen, vec!["tcp/127.0.0.1:0"]);
+        assert_eq!(c.zenoh.connect, vec!["tcp/127.0.0.1:7448"]);
     }
 
     #[test]

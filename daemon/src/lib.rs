@@ -8,8 +8,13 @@
 //!   name the key.
 //! - [`answer`] — per-sample logic without IPC: input checks, sequence and timestamp
 //!   bookkeeping ([`Counters`]), the model call, mapping to the wire status.
-//! - `output` (private) — `HeadingOutput`, one destination of a source's answers
-//!   (iceoryx2 today; the Zenoh output slots in as a second one).
+//! - `output` (private) — `HeadingOutput`, one destination of a source's answers:
+//!   the iceoryx2 heading service, and the Zenoh publisher.
+//! - `remote` (private) — the Zenoh session: heading publishers (congestion control
+//!   *drop*, so a slow remote consumer never stalls the loop), the liveliness token
+//!   `<prefix>/@ghnetd/<zid>`, and the `<prefix>/@ghnetd/stats` and `.../model`
+//!   queryables, answered on Zenoh's threads from a snapshot the loop refreshes with
+//!   `try_lock` (never waiting).
 //! - `serve` (private) — the event loop: one iceoryx2 node, one `WaitSet` with a
 //!   notification per source listener and one housekeeping interval (discovery,
 //!   publisher liveness, dead-node cleanup, stats line).
@@ -61,6 +66,7 @@ use serde::Serialize;
 pub mod answer;
 pub mod config;
 mod output;
+mod remote;
 mod serve;
 #[cfg(test)]
 mod test_model;

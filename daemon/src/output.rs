@@ -1,8 +1,6 @@
-//! Where answers go. Today one output per source, the iceoryx2 heading service; the
-//! planned Zenoh output (`<prefix>/<source>/heading` key expression, see
-//! `IpcConfig::zenoh_heading_key`) is a second [`HeadingOutput`] made in
-//! `Daemon::open_source` and pushed onto the source's output list — the event loop
-//! does not change.
+//! Where answers go: per source the iceoryx2 heading service and, with
+//! `zenoh.enabled`, the Zenoh key `<prefix>/<source>/heading` (`remote::ZenohOutput`),
+//! both made in `Daemon::open_source`. The event loop only sees the trait.
 
 use ghnet_client::{HeadingEstimate, HeadingPublisher, SendError};
 
@@ -21,7 +19,7 @@ pub(crate) trait HeadingOutput {
 /// An output failed; the message is for the log.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
-pub(crate) struct OutputError(#[from] Box<dyn std::error::Error + Send + Sync>);
+pub(crate) struct OutputError(#[from] pub(crate) Box<dyn std::error::Error + Send + Sync>);
 
 impl From<SendError> for OutputError {
     fn from(e: SendError) -> Self {

@@ -23,6 +23,7 @@ use tracing::{debug, info, warn};
 use crate::answer::{Counters, Limits, ModelTag, Tracker};
 use crate::config::Config;
 use crate::output::HeadingOutput;
+use crate::remote::{LatencyRing, ZenohSide};
 use crate::{ShutdownFlag, Stats};
 
 /// Longest the loop sleeps without looking at the shutdown flag. Signals interrupt
@@ -45,6 +46,19 @@ struct Ports {
 /// Everything that changes while serving a source.
 struct State {
     tracker: Tracker,
+    /// The last answer and recent processing times, for the Zenoh stats queryable.
+    last: Option<HeadingEstimate>,
+    latency: LatencyRing,
+}
+
+impl State {
+    fn new(tracker: Tracker) -> Self {
+        Self {
+            tracker,
+            last: None,
+            latency: LatencyRing::new(),
+        }
+    }
 }
 
 /// What a housekeeping pass wants changed.
@@ -80,6 +94,8 @@ struct Daemon {
     added: u64,
     removed: u64,
     next_stats: Option<Instant>,
+    /// The Zenoh session (output, presence, queryables) when `zenoh.enabled`.
+    zenoh: Option<ZenohSide>,
 }
 
 pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stats> {
@@ -96,6 +112,14 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         name: HeadingEstimate::encode_model_name(model.name()),
     };
     let predictor = Predictor::new(model.clone()).with_policy(config.status_policy());
+    let zenoh = if config.zenoh.enabled {
+        let model_json =
+            serde_json::to_string(model.meta()).context("cannot serialise the model metadata")?;
+        Some(ZenohSide::open(&config.zenoh, &ipc, model_json)?)
+    } else {
+        info!("zenoh output disabled (zenoh.enabled = false)");
+        None
+    };
 
     // Signals belong to the embedding program (ghnetd's main registers them and sets
     // `shutdown`); iceoryx2 must not consume them.
@@ -142,6 +166,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         over_limit: BTreeSet::new(),
         added: 0,
         removed: 0,
+        zenoh,
     };
 
     let mut ports: Vec<Ports> = Vec::new();
@@ -172,7 +197,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
             // Samples that arrived before a listener was attached (or before it
             // existed) have no pending wake-up; answer them now.
             for (p, s) in ports.iter().zip(states.iter_mut()) {
-                serve(p, s, &mut d.predictor, &d.limits, &d.tag);
+                serve(p, s, &mut d.predictor, &d.limits, &d.tag, d.zenoh.as_ref());
             }
             loop {
                 let mut tick_due = false;
@@ -186,6 +211,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
                             &mut d.predictor,
                             &d.limits,
                             &d.tag,
+                            d.zenoh.as_ref(),
                         );
                     }
                     CallbackProgression::Continue
@@ -211,7 +237,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
     // the iceoryx2 resources in order).
     info!("shutdown requested: answering buffered samples");
     for (p, s) in ports.iter().zip(states.iter_mut()) {
-        serve(p, s, &mut d.predictor, &d.limits, &d.tag);
+        serve(p, s, &mut d.predictor, &d.limits, &d.tag, d.zenoh.as_ref());
     }
     let stats = d.stats(&ports, &states);
     d.log_stats(&ports, &states);
@@ -236,6 +262,7 @@ fn serve(
     predictor: &mut Predictor,
     limits: &Limits,
     tag: &ModelTag,
+    zenoh: Option<&ZenohSide>,
 ) {
     if let Err(e) = ports.velocity.drain_notifications() {
         debug!(source = %ports.name, error = %e, "draining notifications failed");
@@ -253,6 +280,8 @@ fn serve(
         let t0 = Instant::now();
         let mut answer = state.tracker.answer(&sample, predictor, limits, tag);
         answer.processing_ns = t0.elapsed().as_nanos() as u64;
+        state.latency.push(answer.processing_ns);
+        state.last = Some(answer);
         let mut delivered = true;
         for out in &ports.outputs {
             if let Err(e) = out.publish(&answer) {
@@ -278,18 +307,31 @@ fn serve(
             }
         }
     }
+    if let Some(z) = zenoh {
+        z.refresh(
+            &ports.name,
+            &state.tracker.counters,
+            state.last,
+            &state.latency,
+        );
+    }
 }
 
 impl Daemon {
     fn open_source(&self, name: &str, is_static: bool) -> anyhow::Result<Ports> {
         let velocity = VelocitySubscriber::with_node(&self.node, &self.ipc, name)?;
         let heading = HeadingPublisher::with_node(&self.node, &self.ipc, name)?;
+        let heading_service = heading.service_name().to_owned();
+        let mut outputs: Vec<Box<dyn HeadingOutput>> = vec![Box::new(heading)];
+        if let Some(z) = &self.zenoh {
+            outputs.push(Box::new(z.output(&self.ipc, name)?));
+        }
         Ok(Ports {
             name: name.to_owned(),
             is_static,
             velocity,
-            heading_service: heading.service_name().to_owned(),
-            outputs: vec![Box::new(heading)],
+            heading_service,
+            outputs,
         })
     }
 
@@ -304,9 +346,7 @@ impl Daemon {
         );
         self.added += 1;
         ports.push(p);
-        states.push(State {
-            tracker: Tracker::resume(counters),
-        });
+        states.push(State::new(Tracker::resume(counters)));
     }
 
     /// Runs every `discovery_interval_ms`: cleans up after dead processes, finds
@@ -392,6 +432,9 @@ impl Daemon {
                 "source removed: no publishers left"
             );
             self.retired.entry(p.name.clone()).or_default().add(&c);
+            if let Some(z) = &self.zenoh {
+                z.forget(&p.name);
+            }
             self.removed += 1;
         }
         for name in changes.add {

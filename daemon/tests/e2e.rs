@@ -44,6 +44,8 @@ impl Daemon {
             .arg("--iceoryx2-root-path")
             .arg(ns.root_path())
             .args(["--discovery-interval-ms", "50", "--stats-interval-s", "1"])
+            // Any free loopback port: tests run in parallel.
+            .args(["--zenoh-listen", "tcp/127.0.0.1:0"])
             .args(extra)
             .env("RUST_LOG", "info")
             .stdin(Stdio::null())

@@ -16,6 +16,8 @@ fn run_serves_until_the_flag_and_returns_stats() {
     config.sources.static_sources = vec!["a".into()];
     config.sources.discovery_interval_ms = 50;
     config.stats.interval_s = 0;
+    // Zenoh on, on any free loopback port (tests run in parallel).
+    config.zenoh.listen = vec!["tcp/127.0.0.1:0".into()];
 
     let shutdown = ghnetd::ShutdownFlag::new();
     // iceoryx2 ports are !Send: run() builds its own on the thread it runs on.

@@ -4,7 +4,8 @@
 //! # Layout
 //!
 //! - [`CommonArgs`] — `--prefix`, flattened into every example; gives the
-//!   [`IpcConfig`] all ghnet helpers take.
+//!   [`IpcConfig`] all ghnet helpers take. [`ZenohArgs`] — `--connect` /
+//!   `--zenoh-config` of the Zenoh examples.
 //! - [`pacing_node`], [`Pacer`], [`wait_for_subscriber`] — an iceoryx2 node whose
 //!   `wait` paces a loop and reports Ctrl-C / SIGTERM (the iceoryx2 idiom
 //!   `while node.wait(cycle).is_ok()`), a fixed-rate schedule on it, and the wait for
@@ -49,6 +50,34 @@ impl CommonArgs {
     /// `ghnetd` started without iceoryx2 overrides lives).
     pub fn ipc(&self) -> anyhow::Result<IpcConfig> {
         IpcConfig::new(&self.prefix).context("--prefix")
+    }
+}
+
+/// Where the Zenoh examples find ghnetd: flattened into `zenoh_echo` and `zenoh_stats`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ZenohArgs {
+    /// Zenoh endpoint to connect to: ghnetd's `zenoh.listen` (or a Zenoh router).
+    #[arg(long, default_value_t = format!("tcp/127.0.0.1:{}", ghnet_client::DEFAULT_ZENOH_PORT), value_name = "ENDPOINT")]
+    pub connect: String,
+    /// A standard Zenoh json5 config instead of `--connect` (TLS, routers, ...).
+    #[arg(long, value_name = "FILE")]
+    pub zenoh_config: Option<std::path::PathBuf>,
+}
+
+impl ZenohArgs {
+    /// Opens the session: loopback-only peer connected to `--connect` (no scouting, no
+    /// listening), or the `--zenoh-config` file as is.
+    pub fn open(&self) -> anyhow::Result<ghnet_client::zenoh::Session> {
+        use ghnet_client::zenoh::{self, Wait};
+        let config = match &self.zenoh_config {
+            Some(path) => zenoh::Config::from_file(path)
+                .map_err(|e| anyhow::anyhow!("--zenoh-config {}: {e}", path.display()))?,
+            None => ghnet_client::peer_config(&[], std::slice::from_ref(&self.connect))
+                .map_err(|e| anyhow::anyhow!("--connect {}: {e}", self.connect))?,
+        };
+        zenoh::open(config)
+            .wait()
+            .map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))
     }
 }
 

@@ -60,6 +60,12 @@ fn invalid_values() {
         (&["--source", "a/b"][..], "sources.static"),
         (&["--max-speed=-1"][..], "model.max_speed"),
         (&["--service-prefix", "/x"][..], "ipc.service_prefix"),
+        (&["--zenoh-mode", "server"][..], "zenoh.mode"),
+        (&["--zenoh-listen", "nonsense"][..], "zenoh.listen"),
+        (
+            &["--zenoh-config", "/nonexistent/zenoh.json5"][..],
+            "zenoh.config_file",
+        ),
     ] {
         let args: Vec<OsString> = args.iter().map(Into::into).collect();
         let line = fails_with_one_line(&args);

@@ -9,6 +9,7 @@ mod discovery;
 mod echo;
 mod invalid;
 mod shutdown;
+mod zenoh_output;
 
 /// Path of the helper publisher binary of this package.
 pub const TEST_PUBLISHER: &str = env!("CARGO_BIN_EXE_ghnet-test-publisher");

@@ -68,6 +68,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     (config.sources.static_sources, config.sources.discovery) = (vec![SOURCE.into()], false);
     config.ipc.iceoryx2_global_prefix = ns.as_ref().map(|ns| ns.global_prefix().into());
     config.ipc.iceoryx2_root_path = ns.as_ref().map(|ns| ns.root_path().into());
+    // This demo is about shared memory; `zenoh_echo` shows the Zenoh output. Off, so
+    // the demo never competes with a running ghnetd for its Zenoh port.
+    config.zenoh.enabled = false;
     let shutdown = ghnetd::ShutdownFlag::new();
     let daemon = std::thread::spawn({
         let shutdown = shutdown.clone();

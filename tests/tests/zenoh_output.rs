@@ -1,0 +1,269 @@
+//! The Zenoh output: every heading sent on iceoryx2 also arrives on Zenoh with the
+//! same bytes; presence, stats and model queryables; loopback-only sockets.
+
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+use ghnet_client::zenoh::query::ConsolidationMode;
+use ghnet_client::zenoh::Wait;
+use ghnet_client::{
+    HeadingEstimate, HeadingSubscriber, VelocityPublisher, VelocitySample, ZenohHeadingSubscriber,
+};
+use ghnet_tests::{now_ns, test_model, unique_prefix, zenoh_session, Daemon, Namespace, WATCHDOG};
+
+/// Sends warm-up samples until one comes back over Zenoh too: the subscriber's
+/// declaration has reached the daemon. Drains both subscribers afterwards.
+fn warm_up(
+    gnss: &VelocityPublisher,
+    ice: &HeadingSubscriber,
+    zen: &ZenohHeadingSubscriber,
+    daemon: &Daemon,
+) {
+    let mut seq = 0;
+    loop {
+        daemon.assert_running();
+        assert!(seq < 2_000, "no heading over Zenoh after {seq} samples");
+        gnss.send(VelocitySample::new(now_ns(), seq, 1.0, 1.0, 0.0))
+            .unwrap();
+        ice.recv_timeout(WATCHDOG)
+            .unwrap()
+            .expect("iceoryx2 answer");
+        seq += 1;
+        if zen
+            .recv_timeout(Duration::from_millis(20))
+            .unwrap()
+            .is_some()
+        {
+            break;
+        }
+    }
+    while zen
+        .recv_timeout(Duration::from_millis(200))
+        .unwrap()
+        .is_some()
+    {}
+}
+
+#[test]
+fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
+    let ns = Namespace::new();
+    let prefix = unique_prefix("zt");
+    let ipc = ns.ipc().with_prefix(&prefix).unwrap();
+    let daemon = Daemon::start(
+        &ns,
+        &[
+            "--source",
+            "z0",
+            "--discovery",
+            "false",
+            "--service-prefix",
+            &prefix,
+        ],
+    );
+    let session = zenoh_session(&daemon.zenoh_endpoint());
+    let zen = ZenohHeadingSubscriber::new(&session, &ipc, "z0").unwrap();
+    assert_eq!(zen.key(), format!("{prefix}/z0/heading"));
+    let ice = HeadingSubscriber::new(&ipc, "z0").unwrap();
+    let gnss = VelocityPublisher::new(&ipc, "z0").unwrap();
+    daemon.wait_serving(&gnss);
+    warm_up(&gnss, &ice, &zen, &daemon);
+
+    // Valid, stationary, invalid (NaN) and fast inputs; large sequence numbers.
+    let n = 400u64;
+    let first = 1u64 << 40;
+    let mut from_ice = BTreeMap::new();
+    let t0 = now_ns();
+    for i in 0..n {
+        let (vn, ve) = match i % 4 {
+            0 => (0.0, 0.0),
+            1 => (f32::NAN, 1.0),
+            2 => (60.0, -20.0),
+            _ => (i as f32 * 0.1, 3.0),
+        };
+        gnss.send(VelocitySample::new(t0 + i, first + i, vn, ve, 0.0))
+            .unwrap();
+        let h = ice
+            .recv_timeout(WATCHDOG)
+            .unwrap()
+            .expect("iceoryx2 answer");
+        from_ice.insert(h.seq, h.to_le_bytes());
+    }
+    let mut from_zenoh: BTreeMap<u64, [u8; 64]> = BTreeMap::new();
+    while from_zenoh.len() < n as usize {
+        daemon.assert_running();
+        let h: HeadingEstimate =
+            zen.recv_timeout(WATCHDOG)
+                .expect("decodes")
+                .unwrap_or_else(|| {
+                    panic!(
+                        "watchdog: {} of {n} headings over Zenoh; log:\n{}",
+                        from_zenoh.len(),
+                        daemon.log()
+                    )
+                });
+        assert!(h.seq >= first, "warm-up heading after the drain: {h:?}");
+        assert!(
+            from_zenoh.insert(h.seq, h.to_le_bytes()).is_none(),
+            "duplicate {}",
+            h.seq
+        );
+    }
+    // Same sequence numbers, byte for byte the same headings (NaN payloads included).
+    assert_eq!(from_zenoh, from_ice);
+    assert!(zen
+        .recv_timeout(Duration::from_millis(200))
+        .unwrap()
+        .is_none());
+
+    // Stats: the loop refreshes the snapshot per wake-up; the last one is in.
+    let stats_key = ipc.zenoh_stats_key();
+    let mut stats = serde_json::Value::Null;
+    daemon.wait_until("stats with every sample", || {
+        let replies = session
+            .get(stats_key.as_str())
+            .consolidation(ConsolidationMode::None)
+            .wait()
+            .unwrap();
+        let reply = replies.recv_timeout(WATCHDOG).unwrap().expect("a reply");
+        let bytes = reply.result().expect("ok reply").payload().to_bytes();
+        stats = serde_json::from_slice(&bytes).expect("JSON");
+        stats["sources"]["z0"]["last_seq"] == first + n - 1
+    });
+    let z0 = &stats["sources"]["z0"];
+    let received = z0["received"].as_u64().unwrap();
+    assert_eq!(z0["answered"].as_u64(), Some(received), "{stats}");
+    assert!(received >= n, "{stats}");
+    assert!(z0["invalid"].as_u64().unwrap() >= n / 4, "{stats}");
+    assert!(z0["processing"]["p50_ns"].as_u64().unwrap() > 0, "{stats}");
+    assert!(
+        z0["processing"]["p99_ns"].as_u64() >= z0["processing"]["p50_ns"].as_u64(),
+        "{stats}"
+    );
+    assert_eq!(stats["daemon"]["pid"].as_u64(), Some(daemon.pid() as u64));
+    eprintln!("stats: {stats}");
+
+    // Model metadata.
+    let replies = session.get(ipc.zenoh_model_key()).wait().unwrap();
+    let reply = replies.recv_timeout(WATCHDOG).unwrap().expect("a reply");
+    let meta: serde_json::Value =
+        serde_json::from_slice(&reply.result().expect("ok").payload().to_bytes()).unwrap();
+    assert_eq!(
+        meta["name"].as_str(),
+        Some(test_model().model.name()),
+        "{meta}"
+    );
+
+    // Presence: one token under <prefix>/@ghnetd/, named by the daemon's zid.
+    let zid = stats["daemon"]["zid"].as_str().unwrap().to_owned();
+    let tokens = session
+        .liveliness()
+        .get(format!("{prefix}/@ghnetd/*"))
+        .wait()
+        .unwrap();
+    let token = tokens.recv_timeout(WATCHDOG).unwrap().expect("a token");
+    assert_eq!(
+        token.result().expect("ok").key_expr().as_str(),
+        ipc.zenoh_presence_key(&zid)
+    );
+
+    let (status, log) = daemon.terminate();
+    assert!(status.success(), "{log}");
+}
+
+/// Socket inodes of `pid`'s open file descriptors.
+fn socket_inodes(pid: u32) -> Vec<String> {
+    std::fs::read_dir(format!("/proc/{pid}/fd"))
+        .unwrap()
+        .flatten()
+        .filter_map(|e| std::fs::read_link(e.path()).ok())
+        .filter_map(|t| {
+            let t = t.to_string_lossy().into_owned();
+            Some(t.strip_prefix("socket:[")?.strip_suffix(']')?.to_owned())
+        })
+        .collect()
+}
+
+/// Rows of `/proc/<pid>/net/<table>` whose inode is one of `inodes`:
+/// (local address hex, state hex).
+fn rows(pid: u32, table: &str, inodes: &[String]) -> Vec<(String, String)> {
+    let text = std::fs::read_to_string(format!("/proc/{pid}/net/{table}")).unwrap_or_default();
+    text.lines()
+        .skip(1)
+        .filter_map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            (f.len() > 9 && inodes.iter().any(|i| i == f[9]))
+                .then(|| (f[1].to_owned(), f[3].to_owned()))
+        })
+        .collect()
+}
+
+/// With the shipped defaults (only the port changed, so tests run in parallel) the
+/// daemon listens on 127.0.0.1 only and has no UDP socket at all: no multicast
+/// scouting. `ss -tulpn | grep ghnetd` shows the same by hand.
+#[test]
+fn default_zenoh_listens_on_loopback_only_and_opens_no_udp_socket() {
+    let ns = Namespace::new();
+    let prefix = unique_prefix("zl");
+    let daemon = Daemon::start(&ns, &["--service-prefix", &prefix]);
+    let endpoint = daemon.zenoh_endpoint();
+    assert!(endpoint.starts_with("tcp/127.0.0.1:"), "{endpoint}");
+    // Connect once, so established sockets exist too.
+    let _session = zenoh_session(&endpoint);
+    let pid = daemon.pid();
+    let inodes = socket_inodes(pid);
+    let listening: Vec<_> = rows(pid, "tcp", &inodes)
+        .into_iter()
+        .chain(rows(pid, "tcp6", &inodes))
+        .filter(|(_, state)| state == "0A")
+        .collect();
+    assert!(!listening.is_empty(), "ghnetd listens somewhere");
+    for (addr, _) in &listening {
+        // 127.0.0.1 in /proc's little-endian hex.
+        assert!(addr.starts_with("0100007F:"), "listening on {addr}");
+    }
+    let udp: Vec<_> = rows(pid, "udp", &inodes)
+        .into_iter()
+        .chain(rows(pid, "udp6", &inodes))
+        .collect();
+    assert!(udp.is_empty(), "UDP sockets (scouting?): {udp:?}");
+    let (status, log) = daemon.terminate();
+    assert!(status.success(), "{log}");
+}
+
+/// A Zenoh port already taken: ghnetd exits non-zero and says which key to change.
+#[test]
+fn busy_zenoh_port_is_a_clear_start_up_error() {
+    let ns = Namespace::new();
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let endpoint = format!("tcp/{}", taken.local_addr().unwrap());
+    let mut args = ns.daemon_args();
+    args.extend(["--zenoh-listen".into(), endpoint.clone().into()]);
+    if let Some(name) = test_model().flag {
+        args.extend(["--model".into(), name.into()]);
+    }
+    let out = ghnet_tests::run_ghnetd(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    let last = stderr.lines().last().unwrap_or_default();
+    assert!(last.starts_with("error: zenoh.listen"), "{stderr}");
+    assert!(last.contains(&endpoint), "{stderr}");
+}
+
+/// `--zenoh false`: no Zenoh session at all, iceoryx2 unaffected.
+#[test]
+fn zenoh_can_be_disabled() {
+    let ns = Namespace::new();
+    let ipc = ns.ipc();
+    let daemon = Daemon::start(&ns, &["--source", "off", "--zenoh", "false"]);
+    let headings = HeadingSubscriber::new(&ipc, "off").unwrap();
+    let gnss = VelocityPublisher::new(&ipc, "off").unwrap();
+    daemon.wait_serving(&gnss);
+    gnss.send(VelocitySample::new(1, 1, 1.0, 0.0, 0.0)).unwrap();
+    assert!(headings.recv_timeout(WATCHDOG).unwrap().is_some());
+    let pid = daemon.pid();
+    let inodes = socket_inodes(pid);
+    assert!(rows(pid, "tcp", &inodes).is_empty() && rows(pid, "tcp6", &inodes).is_empty());
+    let (status, log) = daemon.terminate();
+    assert!(status.success(), "{log}");
+    assert!(log.contains("zenoh output disabled"), "{log}");
+}
