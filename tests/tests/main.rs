@@ -8,6 +8,7 @@ mod crash;
 mod discovery;
 mod echo;
 mod invalid;
+mod netns;
 mod python;
 mod shutdown;
 mod zenoh_output;
