@@ -556,6 +556,15 @@ fn comparison_header(c: &Comparison) -> String {
     }
 }
 
+/// A row's label for Markdown: summary and overall rows in bold.
+fn row_label(bold: bool, row: &Row) -> String {
+    if bold {
+        format!("**{}**", row.label)
+    } else {
+        row.label.clone()
+    }
+}
+
 /// All rows in table order: bins, then summaries, then overall.
 fn all_rows(r: &Report) -> impl Iterator<Item = (bool, &Row)> {
     r.bins
@@ -586,11 +595,7 @@ fn metric_table(
     let _ = writeln!(out, "| {} |", header.join(" | "));
     let _ = writeln!(out, "|{}", "---:|".repeat(header.len()));
     for (bold, row) in all_rows(r) {
-        let label = if bold {
-            format!("**{}**", row.label)
-        } else {
-            row.label.clone()
-        };
+        let label = row_label(bold, row);
         let mut cells = vec![label, row.count.to_string()];
         cells.extend(row.stats.iter().map(|s| format!("{:.2}", value(s))));
         if let Some(f) = pct_of {
@@ -629,11 +634,7 @@ pub fn to_markdown_compact(r: &Report, estimator: &str, min_count: usize) -> Str
         if !bold && row.count < min_count {
             continue;
         }
-        let label = if bold {
-            format!("**{}**", row.label)
-        } else {
-            row.label.clone()
-        };
+        let label = row_label(bold, row);
         let mut cells = vec![label, row.count.to_string()];
         for s in &row.stats {
             cells.push(format!("{:.2}", s.mae_deg));
@@ -721,11 +722,7 @@ pub fn to_markdown(r: &Report) -> String {
         let _ = writeln!(out, "| {} |", header.join(" | "));
         let _ = writeln!(out, "|{}", "---:|".repeat(header.len()));
         for (bold, row) in all_rows(r) {
-            let label = if bold {
-                format!("**{}**", row.label)
-            } else {
-                row.label.clone()
-            };
+            let label = row_label(bold, row);
             let mut cells = vec![label, row.count.to_string()];
             for &i in &calibrated {
                 let s = &row.stats[i];
