@@ -1,12 +1,28 @@
-//! Inference cost of the shipped model: single-sample and batch paths, through the
-//! `Predictor` the daemon uses (validation, network, head, status).
+//! Inference cost of the shipped model, with this core's peak measured in the same run.
 //!
 //! `cargo bench -p ghnet-models --bench inference`
+//!
+//! Groups:
+//! - `single`: one sample through `Predictor::predict` (validation, network, head, status)
+//!   and through `Network::forward_one` on every kernel this CPU has.
+//! - `batch`: `Predictor::predict_batch` at 16, 256 and 4096, and `Network::forward` at 256
+//!   on every kernel; throughput in samples (elements) per second.
+//! - `gflops`: the same `Network::forward` at 256 with throughput counted in FLOPs, so
+//!   criterion's "elem/s" reads as FLOP/s: 2 per multiply-add of the unpadded folded net
+//!   (33,648 MACs per sample for `ghnet-full`; bias, GELU and padding not counted).
+//! - `peak`: a loop of nothing but independent register FMAs on each kernel, counted the
+//!   same way: its `avx512` figure is this core's peak, and `gflops / peak` is the share.
+//! - `gelu`: the vector GELU over one batch-256 pass worth of values (408 per sample).
+//!
+//! `ghnet bench` prints the same figures (and the share of peak) as one table.
 
 use std::hint::black_box;
 use std::sync::Arc;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use faer::Mat;
+use ghnet_models::gelu::gelu_inplace_with;
+use ghnet_models::simd::{peak_fma_loop, peak_loop_flops, Kernel};
 use ghnet_models::{Model, Prediction, Predictor, Status};
 
 fn inputs(n: usize) -> (Vec<f32>, Vec<f32>) {
@@ -21,8 +37,10 @@ fn inputs(n: usize) -> (Vec<f32>, Vec<f32>) {
 
 fn bench(c: &mut Criterion) {
     let model = Arc::new(Model::builtin("ghnet-full").expect("embedded model"));
-    let mut p = Predictor::new(model);
+    let mut p = Predictor::new(model.clone());
     let (vn, ve) = inputs(4096);
+    let scale = model.meta().input_scale_mps;
+    let macs = model.network().macs_per_sample() as u64;
 
     let mut g = c.benchmark_group("single");
     g.throughput(Throughput::Elements(1));
@@ -33,6 +51,19 @@ fn bench(c: &mut Criterion) {
             black_box(p.predict(black_box(vn[i]), black_box(ve[i])))
         })
     });
+    for k in Kernel::available() {
+        let net = model.network().clone().with_kernel(k);
+        let mut s = net.scratch(1);
+        let mut out = vec![0.0f32; net.outputs()];
+        g.bench_function(BenchmarkId::new("forward_one", k), |b| {
+            b.iter(|| {
+                i = (i + 1) & 4095;
+                let x = [vn[i] / scale, ve[i] / scale];
+                net.forward_one(black_box(&x), &mut out, &mut s);
+                black_box(&out);
+            })
+        });
+    }
     g.finish();
 
     let mut g = c.benchmark_group("batch");
@@ -50,6 +81,51 @@ fn bench(c: &mut Criterion) {
         g.throughput(Throughput::Elements(n as u64));
         g.bench_with_input(BenchmarkId::new("predict_batch", n), &n, |b, &n| {
             b.iter(|| p.predict_batch(black_box(&vn[..n]), black_box(&ve[..n]), &mut out))
+        });
+    }
+    g.finish();
+
+    // `Network::forward` at 256 on every kernel: samples/s in `batch`, FLOP/s in `gflops`.
+    let n = 256;
+    let x = Mat::from_fn(2, n, |r, j| (if r == 0 { vn[j] } else { ve[j] }) / scale);
+    for (group, per_sample) in [("batch", 1), ("gflops", 2 * macs)] {
+        let mut g = c.benchmark_group(group);
+        g.throughput(Throughput::Elements(n as u64 * per_sample));
+        for k in Kernel::available() {
+            let net = model.network().clone().with_kernel(k);
+            let mut s = net.scratch(n);
+            let mut y = Mat::zeros(net.outputs(), n);
+            g.bench_function(BenchmarkId::new("forward_256", k), |b| {
+                b.iter(|| {
+                    net.forward(black_box(x.as_ref()), y.as_mut(), &mut s);
+                    black_box(&y);
+                })
+            });
+        }
+        g.finish();
+    }
+
+    let mut g = c.benchmark_group("peak");
+    let iters = 100_000;
+    for k in Kernel::available() {
+        g.throughput(Throughput::Elements(peak_loop_flops(k, iters)));
+        g.bench_function(BenchmarkId::new("fma_loop", k), |b| {
+            b.iter(|| black_box(peak_fma_loop(k, black_box(iters))))
+        });
+    }
+    g.finish();
+
+    let mut g = c.benchmark_group("gelu");
+    let len = model.network().gelus_per_sample() * 256;
+    let src: Vec<f32> = (0..len).map(|i| (i % 1000) as f32 * 0.01 - 5.0).collect();
+    let mut buf = src.clone();
+    g.throughput(Throughput::Elements(len as u64));
+    for k in Kernel::available() {
+        g.bench_function(BenchmarkId::new("inplace", k), |b| {
+            b.iter(|| {
+                buf.copy_from_slice(&src);
+                gelu_inplace_with(k, black_box(&mut buf));
+            })
         });
     }
     g.finish();

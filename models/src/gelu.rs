@@ -3,15 +3,41 @@
 //! `gelu(x) = 0.5·x·(1 + tanh(√(2/π)·(x + 0.044715·x³)))`. This is not the exact erf GELU;
 //! weights trained in PyTorch with the exact form would load but give slightly different
 //! outputs, so the model metadata names the activation (`gelu_tanh`).
+//!
+//! Two forms of the same arithmetic: the scalar [`gelu`] / [`gelu_with_grad`] that training
+//! uses, and a vector form (the crate-internal `gelu_v`, exposed as [`gelu_inplace`]) that
+//! inference runs on AVX-512, AVX2+FMA or portable code chosen at run time. They perform
+//! the same operations in the same order; the AVX paths fuse multiply-adds (a few f32 ulps
+//! apart), the portable path is bit-identical to the scalar one. So a model trained with
+//! the scalar form answers the same in inference.
+
+use crate::simd::{Kernel, Simd, V4};
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{V16, V8};
 
 /// `√(2/π)`.
 const K0: f32 = 0.797_884_6;
 /// The cubic coefficient of the tanh approximation.
 const K1: f32 = 0.044_715;
+/// `log2(e)`: `exp(z) = 2^(z·log2 e)`.
+const LOG2E: f32 = std::f32::consts::LOG2_E;
+const LN2: f32 = std::f32::consts::LN_2;
+/// Adding and subtracting `1.5·2^23` rounds an f32 of magnitude < 2^22 to the nearest
+/// integer without `round()`, which on baseline x86-64 (no SSE4.1) is a libm call that
+/// keeps a loop from vectorising.
+const MAGIC: f32 = 12_582_912.0;
+/// Taylor coefficients of `exp(r)` from `r^2/2!` to `r^7/7!`: relative error < 2e-9 on
+/// `|r| ≤ ln2/2`.
+const C2: f32 = 0.5;
+const C3: f32 = 1.0 / 6.0;
+const C4: f32 = 1.0 / 24.0;
+const C5: f32 = 1.0 / 120.0;
+const C6: f32 = 1.0 / 720.0;
+const C7: f32 = 1.0 / 5040.0;
 
 /// `tanh` accurate to a few f32 ulps, written so the compiler can vectorise a loop over it:
 /// `tanh(x) = sign(x)·(1 − e)/(1 + e)` with `e = exp(−2|x|)`, and `exp` by range reduction
-/// to `2^k·exp(r)` with a degree-6 polynomial on `|r| ≤ ln2/2`.
+/// to `2^k·exp(r)` with a degree-7 polynomial on `|r| ≤ ln2/2`.
 #[inline(always)]
 pub fn tanh_fast(x: f32) -> f32 {
     let ax = x.abs().min(9.0); // tanh(9) = 1 - 3e-8: saturated in f32
@@ -20,24 +46,68 @@ pub fn tanh_fast(x: f32) -> f32 {
     t.copysign(x)
 }
 
-/// `exp(-y)` for `y` in `[0, 18]`, branch-free.
+/// `exp(-y)` for `y` in `[0, 18]`, branch-free. Same operations as `exp_neg_v`.
 #[inline(always)]
 fn exp_neg(y: f32) -> f32 {
-    const LN2: f32 = std::f32::consts::LN_2;
-    // Round to nearest with the 1.5·2^23 trick instead of `round()`, which on baseline
-    // x86-64 (no SSE4.1) is a libm call that keeps the loop from vectorising.
-    const MAGIC: f32 = 12_582_912.0;
     let z = -y;
-    let k = (z / LN2 + MAGIC) - MAGIC;
-    let r = z - k * LN2; // |r| <= ln2/2
-                         // Taylor to r^7/7!: relative error < 2e-9 on |r| <= 0.347.
-    let p = 1.0
-        + r * (1.0
-            + r * (0.5
-                + r * (1.0 / 6.0
-                    + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r / 5040.0))))));
+    let k = (z * LOG2E + MAGIC) - MAGIC;
+    let r = z + k * -LN2; // |r| <= ln2/2
+    let p = 1.0 + r * (1.0 + r * (C2 + r * (C3 + r * (C4 + r * (C5 + r * (C6 + r * C7))))));
     let bits = ((k as i32 + 127) as u32) << 23;
     p * f32::from_bits(bits)
+}
+
+/// [`gelu`] on every lane of `x`.
+///
+/// # Safety
+/// `V`'s kernel must be available on this CPU (see [`Simd`]).
+#[inline(always)]
+pub(crate) unsafe fn gelu_v<V: Simd>(x: V) -> V {
+    let one = V::splat(1.0);
+    // K0·(x + K1·x·x·x)
+    let u = V::splat(K0).mul(V::splat(K1).mul(x).mul(x).mul_add(x, x));
+    // tanh_fast(u)
+    let ax = u.abs().min(V::splat(9.0));
+    let e = exp_neg_v(ax.mul(V::splat(2.0)));
+    let t = one.sub(e).div(one.add(e)).copysign(u);
+    V::splat(0.5).mul(x).mul(one.add(t))
+}
+
+/// `exp(-y)` on every lane (see `exp_neg`).
+#[inline(always)]
+unsafe fn exp_neg_v<V: Simd>(y: V) -> V {
+    let z = V::splat(0.0).sub(y);
+    let k = z.mul_add(V::splat(LOG2E), V::splat(MAGIC)).sub(V::splat(MAGIC));
+    let r = k.mul_add(V::splat(-LN2), z);
+    let mut p = r.mul(V::splat(C7)).add(V::splat(C6));
+    for c in [C5, C4, C3, C2, 1.0, 1.0] {
+        p = r.mul_add(p, V::splat(c));
+    }
+    p.mul(V::pow2i(k))
+}
+
+/// GELU over a slice, `V::LANES` at a time, the tail through the scalar form.
+#[inline(always)]
+unsafe fn gelu_slice_v<V: Simd>(xs: &mut [f32]) {
+    let mut chunks = xs.chunks_exact_mut(V::LANES);
+    for c in &mut chunks {
+        gelu_v(V::load(c.as_ptr())).store(c.as_mut_ptr());
+    }
+    for x in chunks.into_remainder() {
+        *x = gelu(*x);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn gelu_slice_avx512(xs: &mut [f32]) {
+    gelu_slice_v::<V16>(xs)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn gelu_slice_avx2(xs: &mut [f32]) {
+    gelu_slice_v::<V8>(xs)
 }
 
 /// GELU (tanh form) of one value.
@@ -47,10 +117,27 @@ pub fn gelu(x: f32) -> f32 {
     0.5 * x * (1.0 + tanh_fast(u))
 }
 
-/// GELU applied in place over a slice.
+/// GELU applied in place over a slice, with the widest kernel this CPU has.
 pub fn gelu_inplace(xs: &mut [f32]) {
-    for x in xs {
-        *x = gelu(*x);
+    gelu_inplace_with(Kernel::detect(), xs)
+}
+
+/// GELU in place with a given kernel (an unavailable one falls back to portable code);
+/// for benches and for tests that hold the paths against each other.
+pub fn gelu_inplace_with(kernel: Kernel, xs: &mut [f32]) {
+    let kernel = if kernel.is_available() {
+        kernel
+    } else {
+        Kernel::Portable
+    };
+    match kernel {
+        // SAFETY: the kernel is available on this CPU (checked above).
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 => unsafe { gelu_slice_avx512(xs) },
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2Fma => unsafe { gelu_slice_avx2(xs) },
+        // SAFETY: V4 is plain Rust.
+        _ => unsafe { gelu_slice_v::<V4>(xs) },
     }
 }
 
@@ -102,6 +189,51 @@ mod tests {
             let err = (gelu(x) as f64 - gelu_reference(x as f64)).abs();
             assert!(err < 1e-6 * (1.0 + x.abs() as f64), "x={x} err={err}");
             x += 0.01;
+        }
+    }
+
+    /// Every kernel against the f64 reference over a dense grid of `[-12, 12]`, and the
+    /// kernels against each other: the bound is what the f32 arithmetic can promise.
+    #[test]
+    fn vector_gelu_error_bound_and_agreement_between_kernels() {
+        let n = 1 << 20;
+        let xs: Vec<f32> = (0..n)
+            .map(|i| -12.0 + 24.0 * i as f32 / (n - 1) as f32)
+            .chain([0.0, -0.0, 1e-30, -1e-30, 20.0, -20.0, 1e6, -1e6])
+            .collect();
+        let mut scalar = xs.clone();
+        for x in &mut scalar {
+            *x = gelu(*x);
+        }
+        for k in Kernel::available() {
+            let mut ys = xs.clone();
+            gelu_inplace_with(k, &mut ys);
+            let mut worst_ref: f64 = 0.0;
+            let mut worst_scalar: f64 = 0.0;
+            for ((&x, &y), &s) in xs.iter().zip(&ys).zip(&scalar) {
+                let tol = 1.0 + (x as f64).abs();
+                worst_ref = worst_ref.max((y as f64 - gelu_reference(x as f64)).abs() / tol);
+                worst_scalar = worst_scalar.max((y as f64 - s as f64).abs() / tol);
+            }
+            assert!(worst_ref < 5e-7, "{k}: error vs f64 reference {worst_ref}");
+            assert!(worst_scalar < 5e-7, "{k}: differs from scalar gelu by {worst_scalar}");
+            if k == Kernel::Portable {
+                assert_eq!(ys, scalar, "portable path must be bit-identical to scalar");
+            }
+        }
+    }
+
+    #[test]
+    fn vector_gelu_propagates_nan_and_handles_infinities_like_scalar() {
+        for k in Kernel::available() {
+            let mut ys = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 3.0].repeat(8);
+            gelu_inplace_with(k, &mut ys);
+            for c in ys.chunks(4) {
+                assert!(c[0].is_nan(), "{k}");
+                assert_eq!(c[1], f32::INFINITY, "{k}");
+                assert_eq!(c[2].is_nan(), gelu(f32::NEG_INFINITY).is_nan(), "{k}");
+                assert!((c[3] - gelu(3.0)).abs() < 1e-6, "{k}");
+            }
         }
     }
 

@@ -4,6 +4,8 @@
 //! - [`params`]: named tensors in PyTorch `state_dict` order and the architecture (Table I).
 //! - [`gelu`]: the tanh-form GELU the paper uses, vectorisable.
 //! - [`net`]: the inference network, batch norm folded and linear head collapsed.
+//! - [`simd`]: the run-time choice of AVX-512 / AVX2+FMA / portable kernels, and the peak
+//!   FMA loop benches compare against.
 //! - [`head`]: how outputs become a heading and σ, and the losses that train them.
 //! - [`weights`]: safetensors files with PyTorch names and ghnet metadata.
 //! - [`model`]: [`Model`] (loaded, shareable) and [`Predictor`] (per thread, no allocation).
@@ -28,6 +30,7 @@ pub mod params;
 pub mod plot;
 pub mod recipes;
 pub mod sim;
+pub mod simd;
 pub mod train;
 pub mod weights;
 

@@ -12,6 +12,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
 use ghnet_models::recipes::{self, DataSpec, Recipe};
+use ghnet_models::simd::Kernel;
 use ghnet_models::sim::{self, RealisticParams, S1Params};
 use ghnet_models::weights::{ModelMeta, FORMAT};
 use ghnet_models::{eval, infer, plot, train, Model, Predictor, DEFAULT_MODEL};
@@ -90,6 +91,60 @@ enum Cmd {
         #[arg(long, default_value = DEFAULT_MODEL)]
         model: String,
     },
+    /// Measure inference speed in one run: batch-256 throughput and single-sample latency
+    /// of the network and of the predictor, GELU throughput, and this core's peak FMA rate
+    /// (GFLOP/s are 2 per multiply-add of the unpadded folded network, against that peak).
+    /// Single-threaded; run on a quiet machine for numbers worth quoting.
+    Bench {
+        /// Built-in model name or safetensors path.
+        #[arg(long, default_value = DEFAULT_MODEL)]
+        model: String,
+        /// Kernel for the network and GELU (the peak loop always uses the widest).
+        #[arg(long, value_enum, default_value_t = KernelArg::Auto)]
+        kernel: KernelArg,
+        /// Seconds spent on each measurement.
+        #[arg(long, default_value_t = 1.0)]
+        seconds: f64,
+        /// Print one JSON object instead of a Markdown table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Print the raw network outputs for velocities read from standard input, one
+    /// `v_north v_east` pair (m/s, separated by spaces or a comma) per line; for checking
+    /// other runtimes (benches/ort_reference.py) against this one.
+    Forward {
+        /// Built-in model name or safetensors path.
+        #[arg(long, default_value = DEFAULT_MODEL)]
+        model: String,
+    },
+}
+
+/// `--kernel` values.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum KernelArg {
+    /// The widest kernel this CPU supports.
+    Auto,
+    /// AVX-512F.
+    Avx512,
+    /// AVX2 with FMA.
+    Avx2,
+    /// Plain Rust (compiler-vectorised).
+    Portable,
+}
+
+impl KernelArg {
+    fn resolve(self) -> Result<Kernel> {
+        let k = match self {
+            KernelArg::Auto => return Ok(Kernel::detect()),
+            KernelArg::Avx512 => Kernel::Avx512,
+            KernelArg::Avx2 => Kernel::Avx2Fma,
+            KernelArg::Portable => Kernel::Portable,
+        };
+        if !k.is_available() {
+            bail!("this CPU cannot run the {k} kernel");
+        }
+        Ok(k)
+    }
 }
 
 #[derive(Subcommand)]
@@ -118,6 +173,8 @@ enum SimCmd {
         output: PathBuf,
     },
 }
+
+mod bench;
 
 fn main() -> ExitCode {
     match run(Cli::parse()) {
@@ -242,7 +299,53 @@ fn run(cli: Cli) -> Result<()> {
             let m = load(&model)?;
             println!("{}", serde_json::to_string_pretty(m.meta())?);
         }
+        Cmd::Bench {
+            model,
+            kernel,
+            seconds,
+            json,
+        } => {
+            let m = load(&model)?;
+            let r = bench::run(&m, kernel.resolve()?, seconds);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                println!("{}", r.to_markdown());
+            }
+        }
+        Cmd::Forward { model } => {
+            let m = load(&model)?;
+            forward_stdin(&m)?;
+        }
     }
+    Ok(())
+}
+
+/// Raw outputs for `v_north v_east` lines on stdin, one output line each.
+fn forward_stdin(m: &Model) -> Result<()> {
+    use std::io::{BufRead, Write};
+    let net = m.network();
+    let mut scratch = net.scratch(1);
+    let mut y = vec![0.0f32; net.outputs()];
+    let stdout = std::io::stdout();
+    let mut out = BufWriter::new(stdout.lock());
+    for (i, line) in std::io::stdin().lock().lines().enumerate() {
+        let line = line?;
+        let v: Vec<f32> = line
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .map(str::parse)
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("line {}: `{line}`", i + 1))?;
+        let [vn, ve] = v[..] else {
+            bail!("line {}: expected `v_north v_east`, got `{line}`", i + 1);
+        };
+        let x = train::scale_input(vn, ve, m.meta().input_scale_mps);
+        net.forward_one(&x, &mut y, &mut scratch);
+        let fields: Vec<String> = y.iter().map(|v| format!("{v:e}")).collect();
+        writeln!(out, "{}", fields.join(" "))?;
+    }
+    out.flush()?;
     Ok(())
 }
 

@@ -7,56 +7,63 @@
 //! its fully connected layers (and dropout is the identity at inference), so `fc4∘fc3∘fc2∘fc1`
 //! is one affine map `W = W4·W3·W2·W1` — exact, not an approximation.
 //!
-//! Activations are column-major `channels × batch` matrices, one column per sample, so every
-//! layer of a batch is one faer matrix product. The caller owns the scratch; nothing is
-//! allocated per call.
+//! Every layer is one kernel pass over `channels × batch` column-major activations (one
+//! column per sample): `Y = act(W·X + b)` with bias and GELU applied to the accumulators
+//! in registers before the single store, so each activation is written once and read once
+//! per layer. Rows (channels) are padded to a multiple of 16 with zero weights, so the
+//! kernels never need a remainder loop over channels; the kernel is AVX-512, AVX2+FMA or
+//! portable, chosen at run time ([`Kernel`]). The batch path tiles the output as
+//! `(rows of up to 3 vectors) × (8 or 4 samples)` in registers; the single-sample path is a
+//! matrix-vector product that splits the sum over inputs into independent chains so FMA
+//! latency does not dominate. The caller owns the scratch; nothing is allocated per call.
 
-use faer::linalg::matmul::matmul;
-use faer::reborrow::ReborrowMut;
-use faer::{Accum, Mat, MatMut, MatRef, Par};
+use faer::{Mat, MatMut, MatRef};
 
-use crate::gelu::gelu_inplace;
+use crate::gelu::gelu_v;
 use crate::params::{Arch, ParamSet, BN_EPS};
+use crate::simd::{padded, AlignedBuf, Kernel, Simd, V4};
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{V16, V8};
 
-/// One dense layer `y = W·x + b` with `W` stored `out × in` column-major.
+/// One dense layer `y = W·x + b`, `W` stored column-major with `padded(rows)` rows.
 #[derive(Debug, Clone)]
 struct Dense {
-    w: Mat<f32>,
-    b: Vec<f32>,
+    /// Real output channels.
+    rows: usize,
+    /// Input length as stored: the previous layer's padded rows (or the network input).
+    k: usize,
+    /// `padded(rows) × k`, column-major, zero in padded rows and in columns past the real
+    /// inputs.
+    w: AlignedBuf,
+    /// `padded(rows)`, zero in padded rows.
+    b: AlignedBuf,
 }
 
 impl Dense {
-    fn out(&self) -> usize {
-        self.w.nrows()
-    }
-
-    /// `y = W·x + b` for one sample, as a sum of weight columns (vectorises over `out`).
-    #[inline]
-    fn apply_one(&self, x: &[f32], y: &mut [f32]) {
-        y.copy_from_slice(&self.b);
-        for (j, &xj) in x.iter().enumerate() {
-            let col = self
-                .w
-                .col(j)
-                .try_as_col_major()
-                .expect("owned Mat is contiguous");
-            for (yi, wi) in y.iter_mut().zip(col.as_slice()) {
-                *yi += wi * xj;
+    /// From an `out × in` weight matrix and bias, stored for an input of length `k ≥ in`.
+    fn new(w: MatRef<'_, f32>, b: &[f32], k: usize) -> Self {
+        let (rows, inputs) = (w.nrows(), w.ncols());
+        debug_assert!(k >= inputs && b.len() == rows);
+        let rp = padded(rows);
+        let mut wp = AlignedBuf::zeros(rp * k);
+        let ws = wp.as_mut_slice();
+        for j in 0..inputs {
+            for i in 0..rows {
+                ws[j * rp + i] = w[(i, j)];
             }
         }
+        let mut bp = AlignedBuf::zeros(rp);
+        bp.as_mut_slice()[..rows].copy_from_slice(b);
+        Self {
+            rows,
+            k,
+            w: wp,
+            b: bp,
+        }
     }
 
-    /// `Y = W·X + b·1ᵀ` for a batch.
-    fn apply(&self, x: MatRef<'_, f32>, mut y: MatMut<'_, f32>) {
-        for j in 0..y.ncols() {
-            let col = y
-                .rb_mut()
-                .col_mut(j)
-                .try_as_col_major_mut()
-                .expect("contiguous");
-            col.as_slice_mut().copy_from_slice(&self.b);
-        }
-        matmul(y, Accum::Add, self.w.as_ref(), x, 1.0f32, Par::Seq);
+    fn rows_padded(&self) -> usize {
+        padded(self.rows)
     }
 }
 
@@ -64,18 +71,25 @@ impl Dense {
 #[derive(Debug, Clone)]
 pub struct Network {
     arch: Arch,
-    conv: Vec<Dense>,
-    head: Dense,
+    kernel: Kernel,
+    /// The conv layers (GELU after each) and then the collapsed head (no activation).
+    layers: Vec<Dense>,
 }
 
 /// Caller-owned buffers for [`Network::forward`] and [`Network::forward_one`].
 ///
 /// Sized once for a maximum batch; a larger batch is processed in chunks of that size.
+/// Made by [`Network::scratch`] for one network shape; using it with a network of another
+/// shape panics.
 #[derive(Debug)]
 pub struct Scratch {
     max_batch: usize,
-    acts: Vec<Mat<f32>>,
-    one: Vec<Vec<f32>>,
+    /// The scaled inputs, `input × max_batch`.
+    input: AlignedBuf,
+    /// Each layer's output, `padded(rows) × max_batch`; the last one is the head's.
+    acts: Vec<AlignedBuf>,
+    /// `padded(rows)` of each layer, to check the scratch fits the network.
+    shape: Vec<usize>,
 }
 
 impl Scratch {
@@ -89,7 +103,8 @@ impl Network {
     /// Fold batch norm into the convolutions and collapse the linear head.
     pub fn fold(params: &ParamSet) -> Self {
         let arch = params.arch().clone();
-        let mut conv = Vec::with_capacity(arch.conv.len());
+        let mut layers = Vec::with_capacity(arch.conv.len() + 1);
+        let mut k = arch.input;
         for l in 1..=arch.conv.len() {
             let wt = params.matrix_t(&format!("conv{l}.weight")); // in × out
             let b = params.get(&format!("conv{l}.bias"));
@@ -102,10 +117,12 @@ impl Network {
                 .map(|o| gamma[o] / (var[o] + BN_EPS).sqrt())
                 .collect();
             let w = Mat::from_fn(out, wt.nrows(), |o, i| wt[(i, o)] * scale[o]);
-            let b = (0..out)
+            let b: Vec<f32> = (0..out)
                 .map(|o| scale[o] * (b[o] - mean[o]) + beta[o])
                 .collect();
-            conv.push(Dense { w, b });
+            let d = Dense::new(w.as_ref(), &b, k);
+            k = d.rows_padded();
+            layers.push(d);
         }
         // Collapse fc layers: start with fc1 and compose.
         let n_fc = arch.fc.len() + 1;
@@ -125,11 +142,29 @@ impl Network {
             w = new_w;
             b = new_b;
         }
-        let head = Dense {
-            w: Mat::from_fn(w.nrows(), w.ncols(), |i, j| w[(i, j)] as f32),
-            b: b.into_iter().map(|v| v as f32).collect(),
-        };
-        Self { arch, conv, head }
+        let head_w = Mat::from_fn(w.nrows(), w.ncols(), |i, j| w[(i, j)] as f32);
+        let head_b: Vec<f32> = b.into_iter().map(|v| v as f32).collect();
+        layers.push(Dense::new(head_w.as_ref(), &head_b, k));
+        Self {
+            arch,
+            kernel: Kernel::detect(),
+            layers,
+        }
+    }
+
+    /// The same network running on `kernel` (if this CPU has it; otherwise unchanged).
+    /// The widest available kernel is the default; this is for benches and for tests that
+    /// hold the kernels against each other.
+    pub fn with_kernel(mut self, kernel: Kernel) -> Self {
+        if kernel.is_available() {
+            self.kernel = kernel;
+        }
+        self
+    }
+
+    /// The kernel the forward passes run on.
+    pub fn kernel(&self) -> Kernel {
+        self.kernel
     }
 
     /// The architecture.
@@ -139,75 +174,294 @@ impl Network {
 
     /// Number of outputs per sample.
     pub fn outputs(&self) -> usize {
-        self.head.out()
+        self.layers.last().expect("head layer").rows
+    }
+
+    /// Multiply-adds per sample of the folded network as specified (unpadded):
+    /// `Σ inputs·outputs` over the conv layers and the collapsed head. GFLOP/s figures
+    /// count 2 FLOPs per multiply-add and leave out bias, GELU and padding.
+    pub fn macs_per_sample(&self) -> usize {
+        let mut inputs = self.arch.input;
+        let mut macs = 0;
+        for d in &self.layers {
+            macs += inputs * d.rows;
+            inputs = d.rows;
+        }
+        macs
+    }
+
+    /// GELU evaluations per sample (the conv channels).
+    pub fn gelus_per_sample(&self) -> usize {
+        self.arch.conv.iter().sum()
     }
 
     /// Buffers for batches of up to `max_batch` samples (at least one).
     pub fn scratch(&self, max_batch: usize) -> Scratch {
         let max_batch = max_batch.max(1);
-        let mut acts = Vec::new();
-        let mut one = Vec::new();
-        for d in &self.conv {
-            acts.push(Mat::zeros(d.out(), max_batch));
-            one.push(vec![0.0; d.out()]);
-        }
         Scratch {
             max_batch,
-            acts,
-            one,
+            input: AlignedBuf::zeros(self.arch.input * max_batch),
+            acts: self
+                .layers
+                .iter()
+                .map(|d| AlignedBuf::zeros(d.rows_padded() * max_batch))
+                .collect(),
+            shape: self.layers.iter().map(Dense::rows_padded).collect(),
         }
+    }
+
+    fn check_scratch(&self, scratch: &Scratch) {
+        assert!(
+            scratch.input.as_slice().len() == self.arch.input * scratch.max_batch
+                && scratch.shape.len() == self.layers.len()
+                && scratch
+                    .shape
+                    .iter()
+                    .zip(&self.layers)
+                    .all(|(&s, d)| s == d.rows_padded()),
+            "scratch was made for a network of another shape"
+        );
     }
 
     /// Forward one sample: `x` is the scaled input (length 2), `out` receives the outputs.
     pub fn forward_one(&self, x: &[f32], out: &mut [f32], scratch: &mut Scratch) {
-        debug_assert_eq!(x.len(), self.arch.input);
-        debug_assert_eq!(out.len(), self.outputs());
-        let (first, rest) = scratch.one.split_at_mut(1);
-        self.conv[0].apply_one(x, &mut first[0]);
-        gelu_inplace(&mut first[0]);
-        let mut prev: &mut Vec<f32> = &mut first[0];
-        for (d, buf) in self.conv[1..].iter().zip(rest.iter_mut()) {
-            d.apply_one(prev, buf);
-            gelu_inplace(buf);
-            prev = buf;
-        }
-        self.head.apply_one(prev, out);
+        self.check_scratch(scratch);
+        assert_eq!(x.len(), self.arch.input, "input length");
+        assert_eq!(out.len(), self.outputs(), "output length");
+        scratch.input.as_mut_slice()[..x.len()].copy_from_slice(x);
+        self.run(1, scratch);
+        let y = scratch.acts.last().expect("head layer").as_slice();
+        out.copy_from_slice(&y[..out.len()]);
     }
 
     /// Forward a batch: `x` is `2 × n` (scaled inputs, one column per sample), `out` is
     /// `outputs × n`. Any `n` is accepted; it is processed in chunks of the scratch size.
     pub fn forward(&self, x: MatRef<'_, f32>, mut out: MatMut<'_, f32>, scratch: &mut Scratch) {
+        self.check_scratch(scratch);
         let n = x.ncols();
+        assert_eq!(x.nrows(), self.arch.input, "input rows");
+        assert_eq!(out.nrows(), self.outputs(), "output rows");
         assert_eq!(out.ncols(), n, "output columns must match input columns");
+        let inputs = self.arch.input;
+        let rp = self.layers.last().expect("head layer").rows_padded();
         let mut start = 0;
         while start < n {
             let len = (n - start).min(scratch.max_batch);
-            let xin = x.subcols(start, len);
-            for (l, d) in self.conv.iter().enumerate() {
-                let (done, todo) = scratch.acts.split_at_mut(l);
-                let mut dst = todo[0].as_mut().subcols_mut(0, len);
-                let src = if l == 0 {
-                    xin
-                } else {
-                    done[l - 1].as_ref().subcols(0, len)
-                };
-                d.apply(src, dst.rb_mut());
-                for j in 0..len {
-                    let c = dst
-                        .rb_mut()
-                        .col_mut(j)
-                        .try_as_col_major_mut()
-                        .expect("contiguous");
-                    gelu_inplace(c.as_slice_mut());
+            let xin = scratch.input.as_mut_slice();
+            for j in 0..len {
+                for i in 0..inputs {
+                    xin[j * inputs + i] = x[(i, start + j)];
                 }
             }
-            let last = scratch.acts.last().expect("at least one conv layer");
-            self.head.apply(
-                last.as_ref().subcols(0, len),
-                out.rb_mut().subcols_mut(start, len),
-            );
+            self.run(len, scratch);
+            let y = scratch.acts.last().expect("head layer").as_slice();
+            for j in 0..len {
+                for i in 0..out.nrows() {
+                    out[(i, start + j)] = y[j * rp + i];
+                }
+            }
             start += len;
         }
+    }
+
+    /// All layers over the first `n ≤ max_batch` columns of `scratch.input`.
+    fn run(&self, n: usize, scratch: &mut Scratch) {
+        debug_assert!(n >= 1 && n <= scratch.max_batch);
+        match self.kernel {
+            // SAFETY: `self.kernel` is only ever an available kernel (`fold` detects it,
+            // `with_kernel` checks it), and the scratch was checked against this network.
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512 => unsafe { run_avx512(self, n, scratch) },
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2Fma => unsafe { run_avx2(self, n, scratch) },
+            // SAFETY: V4 is plain Rust; scratch checked as above.
+            _ => unsafe { run_v::<V4, 4>(self, n, scratch) },
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn run_avx512(net: &Network, n: usize, scratch: &mut Scratch) {
+    // 3 row vectors × 8 samples = 24 accumulators of 32 registers.
+    run_v::<V16, 8>(net, n, scratch)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn run_avx2(net: &Network, n: usize, scratch: &mut Scratch) {
+    // 3 row vectors × 4 samples = 12 accumulators of 16 registers.
+    run_v::<V8, 4>(net, n, scratch)
+}
+
+/// Every layer, each reading the previous one's output in `scratch`.
+///
+/// # Safety
+/// `V`'s kernel is available; `scratch` was made by `net.scratch` (checked shapes) and
+/// `1 ≤ n ≤ scratch.max_batch`.
+#[inline(always)]
+unsafe fn run_v<V: Simd, const NR: usize>(net: &Network, n: usize, scratch: &mut Scratch) {
+    let mut x = scratch.input.as_slice().as_ptr();
+    let mut xs = net.arch.input;
+    let last = net.layers.len() - 1;
+    for (l, d) in net.layers.iter().enumerate() {
+        let y = scratch.acts[l].as_mut_slice().as_mut_ptr();
+        if l < last {
+            dense::<V, NR, true>(d, x, xs, n, y);
+        } else {
+            dense::<V, NR, false>(d, x, xs, n, y);
+        }
+        x = y;
+        xs = d.rows_padded();
+    }
+}
+
+/// `Y[:, j] = act(W·X[:, j] + b)` for `j < n`, with `act` GELU or the identity.
+/// `X` has column stride `xs` and `d.k` rows; `Y` has column stride `padded(d.rows)`.
+///
+/// # Safety
+/// As [`run_v`]; `x` valid for `n` columns, `y` for `n` columns, not overlapping.
+#[inline(always)]
+unsafe fn dense<V: Simd, const NR: usize, const GELU: bool>(
+    d: &Dense,
+    x: *const f32,
+    xs: usize,
+    n: usize,
+    y: *mut f32,
+) {
+    let rv = d.rows_padded() / V::LANES;
+    if n == 1 {
+        // Matrix-vector: MR row vectors × S partial sums = 8 to 12 independent chains.
+        match rv {
+            _ if rv % 4 == 0 => matvec::<V, 4, 2, GELU>(d, x, y),
+            _ if rv % 3 == 0 => matvec::<V, 3, 4, GELU>(d, x, y),
+            _ if rv % 2 == 0 => matvec::<V, 2, 4, GELU>(d, x, y),
+            _ => matvec::<V, 1, 8, GELU>(d, x, y),
+        }
+    } else {
+        match rv {
+            _ if rv % 3 == 0 => matmul::<V, 3, NR, GELU>(d, x, xs, n, y),
+            _ if rv % 2 == 0 => matmul::<V, 2, NR, GELU>(d, x, xs, n, y),
+            _ => matmul::<V, 1, NR, GELU>(d, x, xs, n, y),
+        }
+    }
+}
+
+/// The batch kernel: for each block of `MR` row vectors, tiles of `NR` samples, then the
+/// remaining samples one by one.
+#[inline(always)]
+unsafe fn matmul<V: Simd, const MR: usize, const NR: usize, const GELU: bool>(
+    d: &Dense,
+    x: *const f32,
+    xs: usize,
+    n: usize,
+    y: *mut f32,
+) {
+    let rows = d.rows_padded();
+    let mut r0 = 0;
+    while r0 < rows {
+        let mut j = 0;
+        while j + NR <= n {
+            tile::<V, MR, NR, GELU>(d, x, xs, y, r0, j);
+            j += NR;
+        }
+        while j < n {
+            tile::<V, MR, 1, GELU>(d, x, xs, y, r0, j);
+            j += 1;
+        }
+        r0 += MR * V::LANES;
+    }
+}
+
+/// Rows `r0..r0 + MR·LANES` of samples `j0..j0 + NR`: accumulators start at the bias, one
+/// FMA per weight vector and sample, then GELU in registers and one store.
+#[inline(always)]
+unsafe fn tile<V: Simd, const MR: usize, const NR: usize, const GELU: bool>(
+    d: &Dense,
+    x: *const f32,
+    xs: usize,
+    y: *mut f32,
+    r0: usize,
+    j0: usize,
+) {
+    let rows = d.rows_padded();
+    let w = d.w.as_slice().as_ptr().add(r0);
+    let b = d.b.as_slice().as_ptr().add(r0);
+    let mut acc = [[V::splat(0.0); NR]; MR];
+    for (m, row) in acc.iter_mut().enumerate() {
+        let bv = V::load(b.add(m * V::LANES));
+        for a in row.iter_mut() {
+            *a = bv;
+        }
+    }
+    let xc = x.add(j0 * xs);
+    for kk in 0..d.k {
+        let wk = w.add(kk * rows);
+        let mut wv = [V::splat(0.0); MR];
+        for (m, v) in wv.iter_mut().enumerate() {
+            *v = V::load(wk.add(m * V::LANES));
+        }
+        for c in 0..NR {
+            let xv = V::splat(*xc.add(c * xs + kk));
+            for m in 0..MR {
+                acc[m][c] = wv[m].mul_add(xv, acc[m][c]);
+            }
+        }
+    }
+    for (m, row) in acc.iter().enumerate() {
+        for (c, &a) in row.iter().enumerate() {
+            let v = if GELU { gelu_v(a) } else { a };
+            v.store(y.add((j0 + c) * rows + r0 + m * V::LANES));
+        }
+    }
+}
+
+/// The single-sample kernel: `MR` row vectors at a time, the sum over inputs split into
+/// `S` interleaved partial sums so that `MR·S` FMA chains run in parallel.
+#[inline(always)]
+unsafe fn matvec<V: Simd, const MR: usize, const S: usize, const GELU: bool>(
+    d: &Dense,
+    x: *const f32,
+    y: *mut f32,
+) {
+    let rows = d.rows_padded();
+    let k = d.k;
+    let mut r0 = 0;
+    while r0 < rows {
+        let w = d.w.as_slice().as_ptr().add(r0);
+        let b = d.b.as_slice().as_ptr().add(r0);
+        let mut acc = [[V::splat(0.0); S]; MR];
+        for (m, row) in acc.iter_mut().enumerate() {
+            row[0] = V::load(b.add(m * V::LANES));
+        }
+        let mut kk = 0;
+        while kk + S <= k {
+            for s in 0..S {
+                let xv = V::splat(*x.add(kk + s));
+                let wk = w.add((kk + s) * rows);
+                for (m, row) in acc.iter_mut().enumerate() {
+                    row[s] = V::load(wk.add(m * V::LANES)).mul_add(xv, row[s]);
+                }
+            }
+            kk += S;
+        }
+        while kk < k {
+            let xv = V::splat(*x.add(kk));
+            let wk = w.add(kk * rows);
+            for (m, row) in acc.iter_mut().enumerate() {
+                row[0] = V::load(wk.add(m * V::LANES)).mul_add(xv, row[0]);
+            }
+            kk += 1;
+        }
+        for (m, row) in acc.iter().enumerate() {
+            let mut a = row[0];
+            for &p in &row[1..] {
+                a = a.add(p);
+            }
+            let v = if GELU { gelu_v(a) } else { a };
+            v.store(y.add(r0 + m * V::LANES));
+        }
+        r0 += MR * V::LANES;
     }
 }
 
@@ -264,5 +518,134 @@ mod tests {
         for j in 0..3 {
             assert!((om[(0, j)] as f64 - expect).abs() < 1e-5);
         }
+    }
+
+    /// The unfolded network in f64 straight from the parameters (conv, batch norm, exact
+    /// tanh GELU, every fc layer): an independent reference for the kernels.
+    fn reference(p: &ParamSet, x: [f64; 2]) -> Vec<f64> {
+        let arch = p.arch();
+        let mut a: Vec<f64> = x.to_vec();
+        let dense = |name: &str, a: &[f64]| -> Vec<f64> {
+            let wt = p.matrix_t(&format!("{name}.weight"));
+            let b = p.get(&format!("{name}.bias"));
+            (0..wt.ncols())
+                .map(|o| b[o] as f64 + (0..wt.nrows()).map(|i| wt[(i, o)] as f64 * a[i]).sum::<f64>())
+                .collect()
+        };
+        for l in 1..=arch.conv.len() {
+            let z = dense(&format!("conv{l}"), &a);
+            let g = p.get(&format!("bn{l}.weight"));
+            let be = p.get(&format!("bn{l}.bias"));
+            let mu = p.get(&format!("bn{l}.running_mean"));
+            let var = p.get(&format!("bn{l}.running_var"));
+            a = (0..z.len())
+                .map(|o| {
+                    let y = g[o] as f64 * (z[o] - mu[o] as f64)
+                        / (var[o] as f64 + BN_EPS as f64).sqrt()
+                        + be[o] as f64;
+                    gelu_reference(y)
+                })
+                .collect();
+        }
+        for l in 1..=arch.fc.len() + 1 {
+            a = dense(&format!("fc{l}"), &a);
+        }
+        a
+    }
+
+    fn inputs(n: usize) -> Vec<[f32; 2]> {
+        (0..n)
+            .map(|i| {
+                let t = i as f32 * 0.618;
+                let r = 0.05 + (i % 37) as f32 * 0.13;
+                [r * t.cos(), r * t.sin()]
+            })
+            .collect()
+    }
+
+    /// Every available kernel, batch and single-sample paths, against the f64 reference;
+    /// batch sizes exercise whole tiles, leftover samples and chunking by the scratch size.
+    fn check_against_reference(p: &ParamSet, tol: f64) {
+        let base = Network::fold(p);
+        let xs = inputs(75);
+        let want: Vec<Vec<f64>> = xs
+            .iter()
+            .map(|x| reference(p, [x[0] as f64, x[1] as f64]))
+            .collect();
+        let scale = want
+            .iter()
+            .flatten()
+            .fold(1.0f64, |m, v| m.max(v.abs()));
+        for kernel in Kernel::available() {
+            let net = base.clone().with_kernel(kernel);
+            assert_eq!(net.kernel(), kernel);
+            let k = net.outputs();
+            for (max_batch, n) in [(256, 75), (16, 75), (8, 8), (32, 1), (4, 7)] {
+                let mut s = net.scratch(max_batch);
+                let xm = Mat::from_fn(2, n, |i, j| xs[j][i]);
+                let mut out = Mat::from_fn(k, n, |_, _| f32::NAN);
+                net.forward(xm.as_ref(), out.as_mut(), &mut s);
+                for j in 0..n {
+                    for o in 0..k {
+                        let err = (out[(o, j)] as f64 - want[j][o]).abs() / scale;
+                        assert!(err < tol, "{kernel} batch {n}/{max_batch} [{o},{j}]: {err}");
+                    }
+                }
+            }
+            let mut s = net.scratch(1);
+            let mut one = vec![0.0f32; k];
+            for (x, w) in xs.iter().zip(&want) {
+                net.forward_one(x, &mut one, &mut s);
+                for o in 0..k {
+                    let err = (one[o] as f64 - w[o]).abs() / scale;
+                    assert!(err < tol, "{kernel} single [{o}]: {err}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn every_kernel_matches_f64_reference_on_shipped_model() {
+        let model = crate::Model::builtin("ghnet-full").expect("embedded model");
+        check_against_reference(model.params(), 2e-5);
+    }
+
+    /// Odd channel counts: padding, one- and two-vector row blocks, a 2-output head.
+    #[test]
+    fn every_kernel_matches_f64_reference_on_odd_shapes() {
+        use rand::{Rng, SeedableRng};
+        let arch = Arch {
+            input: 2,
+            conv: vec![5, 17, 40, 33],
+            fc: vec![9],
+            output: 2,
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut p = ParamSet::init(&arch, &mut rng);
+        for l in 1..=arch.conv.len() {
+            for v in p.get_mut(&format!("bn{l}.running_mean")) {
+                *v = rng.random_range(-0.5..0.5);
+            }
+            for v in p.get_mut(&format!("bn{l}.running_var")) {
+                *v = rng.random_range(0.2..2.0);
+            }
+        }
+        check_against_reference(&p, 2e-5);
+    }
+
+    #[test]
+    fn scratch_of_another_shape_is_refused() {
+        let model = crate::Model::builtin("ghnet-full").expect("embedded model");
+        let small = Network::fold(&ParamSet::init(
+            &Arch::tiny(3),
+            &mut <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(1),
+        ));
+        let mut s = small.scratch(4);
+        let mut out = vec![0.0; model.network().outputs()];
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            model.network().forward_one(&[0.1, 0.2], &mut out, &mut s)
+        }));
+        let msg = r.expect_err("mismatched scratch must be refused");
+        assert!(format!("{:?}", msg.downcast_ref::<&str>()).contains("another shape"));
     }
 }
