@@ -146,13 +146,17 @@ pub fn run(model: &Arc<Model>, kernel: Kernel, seconds: f64) -> Report {
         black_box(peak_fma_loop(widest, black_box(iters)));
     });
 
-    let x = faer::Mat::from_fn(2, BATCH, |i, j| {
-        if i == 0 {
-            vn[j] / scale
-        } else {
-            ve[j] / scale
-        }
-    });
+    let x = faer::Mat::from_fn(
+        2,
+        BATCH,
+        |i, j| {
+            if i == 0 {
+                vn[j] / scale
+            } else {
+                ve[j] / scale
+            }
+        },
+    );
     let mut y = faer::Mat::zeros(net.outputs(), BATCH);
     let mut scratch = net.scratch(BATCH);
     let batch = median(rates(seconds, BATCH as f64, || {
@@ -191,7 +195,9 @@ pub fn run(model: &Arc<Model>, kernel: Kernel, seconds: f64) -> Report {
     }));
 
     let n_gelu = net.gelus_per_sample() * BATCH;
-    let src: Vec<f32> = (0..n_gelu).map(|i| (i % 1000) as f32 * 0.01 - 5.0).collect();
+    let src: Vec<f32> = (0..n_gelu)
+        .map(|i| (i % 1000) as f32 * 0.01 - 5.0)
+        .collect();
     let mut buf = src.clone();
     let gelu = median(rates(seconds / 2.0, n_gelu as f64, || {
         buf.copy_from_slice(&src);

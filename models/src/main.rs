@@ -12,8 +12,8 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
 use ghnet_models::recipes::{self, DataSpec, Recipe};
-use ghnet_models::simd::Kernel;
 use ghnet_models::sim::{self, RealisticParams, S1Params};
+use ghnet_models::simd::Kernel;
 use ghnet_models::weights::{ModelMeta, FORMAT};
 use ghnet_models::{eval, infer, plot, train, Model, Predictor, DEFAULT_MODEL};
 

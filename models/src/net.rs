@@ -529,7 +529,12 @@ mod tests {
             let wt = p.matrix_t(&format!("{name}.weight"));
             let b = p.get(&format!("{name}.bias"));
             (0..wt.ncols())
-                .map(|o| b[o] as f64 + (0..wt.nrows()).map(|i| wt[(i, o)] as f64 * a[i]).sum::<f64>())
+                .map(|o| {
+                    b[o] as f64
+                        + (0..wt.nrows())
+                            .map(|i| wt[(i, o)] as f64 * a[i])
+                            .sum::<f64>()
+                })
                 .collect()
         };
         for l in 1..=arch.conv.len() {
@@ -572,10 +577,7 @@ mod tests {
             .iter()
             .map(|x| reference(p, [x[0] as f64, x[1] as f64]))
             .collect();
-        let scale = want
-            .iter()
-            .flatten()
-            .fold(1.0f64, |m, v| m.max(v.abs()));
+        let scale = want.iter().flatten().fold(1.0f64, |m, v| m.max(v.abs()));
         for kernel in Kernel::available() {
             let net = base.clone().with_kernel(kernel);
             assert_eq!(net.kernel(), kernel);

@@ -134,6 +134,10 @@ pub(crate) trait Simd: Copy {
     unsafe fn sub(self, o: Self) -> Self;
     unsafe fn mul(self, o: Self) -> Self;
     unsafe fn div(self, o: Self) -> Self;
+    /// `self / o` to within about 2 ulps, for `o` in `[1, 2]`: on AVX a reciprocal
+    /// estimate refined by one Newton step (a full division is the slowest instruction of
+    /// the GELU, ~10 cycles per vector); exact division on the portable path.
+    unsafe fn div_fast(self, o: Self) -> Self;
     /// `min(self, o)`; if `self` is NaN the result is `o` (as `f32::min` and `minps`).
     unsafe fn min(self, o: Self) -> Self;
     /// `self·b + c`, fused where the ISA has FMA.
@@ -143,6 +147,12 @@ pub(crate) trait Simd: Copy {
     unsafe fn copysign(self, sign: Self) -> Self;
     /// `2^k` for lanes holding small integral values (`-126 ≤ k ≤ 127`).
     unsafe fn pow2i(k: Self) -> Self;
+    /// `self·2^k` for integral `k` as in [`Simd::pow2i`]; exact (no rounding) while the
+    /// result is a normal number, so every implementation gives the same bits.
+    #[inline(always)]
+    unsafe fn mul_pow2i(self, k: Self) -> Self {
+        self.mul(Self::pow2i(k))
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -185,6 +195,14 @@ mod x86 {
             V16(_mm512_div_ps(self.0, o.0))
         }
         #[inline(always)]
+        unsafe fn div_fast(self, o: Self) -> Self {
+            // rcp14: relative error < 2^-14; one Newton step squares it.
+            let r = _mm512_rcp14_ps(o.0);
+            let e = _mm512_fnmadd_ps(o.0, r, _mm512_set1_ps(1.0));
+            let r = _mm512_fmadd_ps(r, e, r);
+            V16(_mm512_mul_ps(self.0, r))
+        }
+        #[inline(always)]
         unsafe fn min(self, o: Self) -> Self {
             V16(_mm512_min_ps(self.0, o.0))
         }
@@ -198,17 +216,24 @@ mod x86 {
         }
         #[inline(always)]
         unsafe fn copysign(self, sign: Self) -> Self {
-            // Sign bit from `sign`, the rest from `self`, with integer and/or: the float
-            // forms (`_mm512_and_ps`) need AVX-512DQ.
+            // One bitwise select: sign bit (mask m) from `sign`, the rest from `self`.
+            // Truth table 0xCA = a ? b : c, for operands (a, b, c) = (m, sign, self).
             let m = _mm512_set1_epi32(i32::MIN);
-            let mag = _mm512_andnot_si512(m, _mm512_castps_si512(self.0));
-            let s = _mm512_and_si512(m, _mm512_castps_si512(sign.0));
-            V16(_mm512_castsi512_ps(_mm512_or_si512(mag, s)))
+            V16(_mm512_castsi512_ps(_mm512_ternarylogic_epi32::<0xCA>(
+                m,
+                _mm512_castps_si512(sign.0),
+                _mm512_castps_si512(self.0),
+            )))
         }
         #[inline(always)]
         unsafe fn pow2i(k: Self) -> Self {
             let e = _mm512_add_epi32(_mm512_cvtps_epi32(k.0), _mm512_set1_epi32(127));
             V16(_mm512_castsi512_ps(_mm512_slli_epi32::<23>(e)))
+        }
+        #[inline(always)]
+        unsafe fn mul_pow2i(self, k: Self) -> Self {
+            // vscalefps: one instruction instead of convert, add, shift, multiply.
+            V16(_mm512_scalef_ps(self.0, k.0))
         }
     }
 
@@ -245,6 +270,14 @@ mod x86 {
         #[inline(always)]
         unsafe fn div(self, o: Self) -> Self {
             V8(_mm256_div_ps(self.0, o.0))
+        }
+        #[inline(always)]
+        unsafe fn div_fast(self, o: Self) -> Self {
+            // rcp: relative error < 1.5·2^-12; one Newton step squares it.
+            let r = _mm256_rcp_ps(o.0);
+            let e = _mm256_fnmadd_ps(o.0, r, _mm256_set1_ps(1.0));
+            let r = _mm256_fmadd_ps(r, e, r);
+            V8(_mm256_mul_ps(self.0, r))
         }
         #[inline(always)]
         unsafe fn min(self, o: Self) -> Self {
@@ -322,6 +355,10 @@ impl Simd for V4 {
     #[inline(always)]
     unsafe fn div(self, o: Self) -> Self {
         self.map2(o, |a, b| a / b)
+    }
+    #[inline(always)]
+    unsafe fn div_fast(self, o: Self) -> Self {
+        self.div(o)
     }
     #[inline(always)]
     unsafe fn min(self, o: Self) -> Self {
