@@ -333,15 +333,15 @@ unsafe fn dense<V: Simd, const NR: usize, const GELU: bool>(
     if n == 1 {
         // Matrix-vector: MR row vectors × S partial sums = 8 to 12 independent chains.
         match rv {
-            _ if rv % 4 == 0 => matvec::<V, 4, 2, GELU>(d, x, y),
-            _ if rv % 3 == 0 => matvec::<V, 3, 4, GELU>(d, x, y),
-            _ if rv % 2 == 0 => matvec::<V, 2, 4, GELU>(d, x, y),
+            _ if rv.is_multiple_of(4) => matvec::<V, 4, 2, GELU>(d, x, y),
+            _ if rv.is_multiple_of(3) => matvec::<V, 3, 4, GELU>(d, x, y),
+            _ if rv.is_multiple_of(2) => matvec::<V, 2, 4, GELU>(d, x, y),
             _ => matvec::<V, 1, 8, GELU>(d, x, y),
         }
     } else {
         match rv {
-            _ if rv % 3 == 0 => matmul::<V, 3, NR, GELU>(d, x, xs, n, y),
-            _ if rv % 2 == 0 => matmul::<V, 2, NR, GELU>(d, x, xs, n, y),
+            _ if rv.is_multiple_of(3) => matmul::<V, 3, NR, GELU>(d, x, xs, n, y),
+            _ if rv.is_multiple_of(2) => matmul::<V, 2, NR, GELU>(d, x, xs, n, y),
             _ => matmul::<V, 1, NR, GELU>(d, x, xs, n, y),
         }
     }
@@ -375,6 +375,9 @@ unsafe fn matmul<V: Simd, const MR: usize, const NR: usize, const GELU: bool>(
 
 /// Rows `r0..r0 + MR·LANES` of samples `j0..j0 + NR`: accumulators start at the bias, one
 /// FMA per weight vector and sample, then GELU in registers and one store.
+// Indexing `acc[m][c]` by both loop counters is the point: the loops unroll into a
+// register tile.
+#[allow(clippy::needless_range_loop)]
 #[inline(always)]
 unsafe fn tile<V: Simd, const MR: usize, const NR: usize, const GELU: bool>(
     d: &Dense,
