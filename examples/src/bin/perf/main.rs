@@ -256,7 +256,7 @@ fn run(args: &Args) -> anyhow::Result<bool> {
         let mut t = Target::spawn(&env, &spec)?;
         let r = throughput::measure(&mut t, &session, &names, &opt)?;
         eprintln!(
-            "throughput {}: {:.0} samples/s over {:.1?}; sent {} answered {} lost {} dup {} unexpected {}; zenoh {}/{}; target {:.2} cores, driver {:.2} cores; RSS {:.1} MiB (anon {} KiB, shm {} KiB, peak {} KiB)",
+            "throughput {}: {:.0} samples/s over {:.1?}; sent {} answered {} lost {} dup {} unexpected {}; zenoh {}/{}; target {:.2} cores, driver {:.2} cores; RSS connected {:.1} MiB, after load {:.1} MiB (anon {} KiB, shm {} KiB, peak {} KiB)",
             kind.label(),
             r.rate,
             r.window,
@@ -269,10 +269,11 @@ fn run(args: &Args) -> anyhow::Result<bool> {
             r.zenoh_expected,
             r.target_cores,
             r.driver_cores,
-            r.rss.total_mib(),
-            r.rss.anon_kib,
-            r.rss.shmem_kib,
-            r.rss.peak_kib
+            r.rss_connected.total_mib(),
+            r.rss_after_load.total_mib(),
+            r.rss_after_load.anon_kib,
+            r.rss_after_load.shmem_kib,
+            r.rss_after_load.peak_kib
         );
         t.stop()?;
         tp.push(r);
@@ -348,6 +349,19 @@ fn run(args: &Args) -> anyhow::Result<bool> {
         "–".into(),
         None,
     )];
+    rows.push(row(
+        "model alone: `predict_batch_with_accuracy` per sample, batch 4 / 16 / 128 (p50)",
+        "–".into(),
+        inference
+            .batch
+            .iter()
+            .filter(|(n, _)| [4, 16, 128].contains(n))
+            .map(|(_, d)| us(*d))
+            .collect::<Vec<_>>()
+            .join(" / "),
+        "–".into(),
+        None,
+    ));
     for (output, name) in [(Output::Iceoryx2, "iceoryx2"), (Output::Zenoh, "Zenoh")] {
         let raw = &lat_of(Kind::Echo, output).percentiles;
         let d = &lat_of(Kind::Ghnetd, output).percentiles;
@@ -435,27 +449,45 @@ fn run(args: &Args) -> anyhow::Result<bool> {
         "< 0.5%".into(),
         Some(idle[1] < 0.005),
     ));
+    let mib = |kib: u64| format!("{:.1} MiB", kib as f64 / 1024.0);
     rows.push(row(
         &format!(
-            "VmRSS with {} sources connected, after the load",
+            "VmRSS with {} sources connected (before the load)",
             args.sources
         ),
-        format!("{:.1} MiB", tr.rss.total_mib()),
-        format!("{:.1} MiB", td.rss.total_mib()),
+        mib(tr.rss_connected.total_kib),
+        mib(td.rss_connected.total_kib),
         "< 64 MB".into(),
-        Some((td.rss.total_kib as f64) * 1024.0 < 64e6),
+        Some((td.rss_connected.total_kib as f64) * 1024.0 < 64e6),
     ));
     rows.push(row(
-        "  of which anonymous / iceoryx2 shared memory",
+        "  anonymous / iceoryx2 shared memory of it",
         format!(
-            "{:.1} / {:.1} MiB",
-            tr.rss.anon_kib as f64 / 1024.0,
-            tr.rss.shmem_kib as f64 / 1024.0
+            "{} / {}",
+            mib(tr.rss_connected.anon_kib),
+            mib(tr.rss_connected.shmem_kib)
         ),
         format!(
-            "{:.1} / {:.1} MiB",
-            td.rss.anon_kib as f64 / 1024.0,
-            td.rss.shmem_kib as f64 / 1024.0
+            "{} / {}",
+            mib(td.rss_connected.anon_kib),
+            mib(td.rss_connected.shmem_kib)
+        ),
+        "–".into(),
+        None,
+    ));
+    rows.push(row(
+        "VmRSS after the throughput load (anonymous / shared memory)",
+        format!(
+            "{} ({} / {})",
+            mib(tr.rss_after_load.total_kib),
+            mib(tr.rss_after_load.anon_kib),
+            mib(tr.rss_after_load.shmem_kib)
+        ),
+        format!(
+            "{} ({} / {})",
+            mib(td.rss_after_load.total_kib),
+            mib(td.rss_after_load.anon_kib),
+            mib(td.rss_after_load.shmem_kib)
         ),
         "–".into(),
         None,
@@ -490,11 +522,22 @@ fn ms(d: Duration) -> f64 {
 struct Inference {
     p50: Duration,
     mean: Duration,
+    /// Per-sample time of `predict_batch_with_accuracy`, by batch size.
+    batch: Vec<(usize, Duration)>,
 }
 
 impl std::fmt::Display for Inference {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "p50 {} mean {}", us(self.p50), us(self.mean))
+        write!(
+            f,
+            "one sample: p50 {} mean {}; batch, per sample:",
+            us(self.p50),
+            us(self.mean)
+        )?;
+        for (n, d) in &self.batch {
+            write!(f, " {n}: {}", us(*d))?;
+        }
+        Ok(())
     }
 }
 
@@ -502,12 +545,12 @@ impl std::fmt::Display for Inference {
 /// daemon answers one sample at a time when one is in flight.
 fn inference_time(model: &str, n: usize) -> anyhow::Result<Inference> {
     let model = Arc::new(Model::from_name_or_path(model).map_err(|e| anyhow::anyhow!("{e}"))?);
-    let mut p = Predictor::new(model);
+    let mut predictor = Predictor::new(model);
     let mut times = Vec::with_capacity(n);
     for i in 0..n + 2_000 {
         let vn = 3.0 + (i % 97) as f32 * 0.01;
         let t0 = Instant::now();
-        std::hint::black_box(p.predict_with_accuracy(
+        std::hint::black_box(predictor.predict_with_accuracy(
             std::hint::black_box(vn),
             std::hint::black_box(4.0),
             f32::NAN,
@@ -519,7 +562,29 @@ fn inference_time(model: &str, n: usize) -> anyhow::Result<Inference> {
     }
     let mean = Duration::from_nanos(times.iter().sum::<u64>() / n as u64);
     let p = Percentiles::of(times).context("no samples")?;
-    Ok(Inference { p50: p.p50, mean })
+    // The batch path ghnetd takes when a source has several samples buffered: the
+    // median over repetitions of one call, divided by the batch size.
+    let mut batch = Vec::new();
+    for size in [2usize, 4, 8, 16, 64, 128] {
+        let vn: Vec<f32> = (0..size).map(|i| 3.0 + (i % 97) as f32 * 0.01).collect();
+        let ve = vec![4.0f32; size];
+        let acc = vec![f32::NAN; size];
+        let mut out = vec![predictor.predict(1.0, 1.0); size];
+        let reps = (n / size).clamp(50, 2_000);
+        let mut t = Vec::with_capacity(reps);
+        for _ in 0..reps {
+            let t0 = Instant::now();
+            predictor.predict_batch_with_accuracy(&vn, &ve, &acc, &mut out);
+            std::hint::black_box(&out);
+            t.push(t0.elapsed().as_nanos() as u64 / size as u64);
+        }
+        batch.push((size, Percentiles::of(t).context("no samples")?.p50));
+    }
+    Ok(Inference {
+        p50: p.p50,
+        mean,
+        batch,
+    })
 }
 
 fn print_report(args: &Args, rows: &[Row], took: Duration) -> anyhow::Result<()> {
@@ -573,6 +638,14 @@ fn print_report(args: &Args, rows: &[Row], took: Duration) -> anyhow::Result<()>
             r.metric, r.raw, r.ghnetd, r.target, verdict
         );
     }
+    println!();
+    println!(
+        "Allocations: counted on the daemon thread of an in-process `ghnetd::run` (the \
+         library the binary wraps), one sample in flight, housekeeping included. \
+         iceoryx2 0.10 allocates a small object per loaned sample and per WaitSet \
+         wake-up, and each Zenoh `put` builds a message; daemon/tests/no_alloc.rs checks \
+         that ghnetd's own per-sample code adds nothing."
+    );
     println!();
     Ok(())
 }

@@ -55,8 +55,11 @@ pub struct ThroughputRun {
     pub target_cores: f64,
     /// This process's CPU over the window, in cores.
     pub driver_cores: f64,
-    /// Resident memory of the target with all sources connected, after the load.
-    pub rss: Rss,
+    /// Resident memory of the target with all sources connected and served once,
+    /// before the load.
+    pub rss_connected: Rss,
+    /// The same after the load (Zenoh queues and allocator arenas have grown).
+    pub rss_after_load: Rss,
 }
 
 #[derive(Default, Clone, Copy)]
@@ -147,6 +150,7 @@ pub fn measure(
         state[0].book(h.seq);
     }
     let zenoh_base = zenoh_count.load(Relaxed);
+    let rss_connected = Rss::of(target.pid())?;
     let answered_base: u64 = state.iter().map(|s| s.answered).sum();
 
     let waitset = WaitSetBuilder::new()
@@ -250,7 +254,7 @@ pub fn measure(
             }
         }
     }
-    let rss = Rss::of(target.pid())?;
+    let rss_after_load = Rss::of(target.pid())?;
     // Let the last Zenoh headings arrive.
     std::thread::sleep(Duration::from_millis(300));
     let (Some(ws), Some(we)) = (window_start, window_end) else {
@@ -272,6 +276,7 @@ pub fn measure(
         zenoh_expected: total(|s| s.answered) - answered_base,
         target_cores: (we.2 - ws.2).as_secs_f64() / secs,
         driver_cores: (we.3 - ws.3).as_secs_f64() / secs,
-        rss,
+        rss_connected,
+        rss_after_load,
     })
 }
