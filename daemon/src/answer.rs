@@ -87,6 +87,20 @@ impl Tracker {
         limits: &Limits,
         tag: &ModelTag,
     ) -> HeadingEstimate {
+        // The receiver's speed accuracy (NaN when unknown) lets full-circle models
+        // report this receiver's σ rather than an average receiver's.
+        let prediction = self
+            .book(s, limits)
+            .then(|| predictor.predict_with_accuracy(s.v_north, s.v_east, s.speed_accuracy));
+        self.finish(s, prediction, tag)
+    }
+
+    /// First half of [`answer`](Self::answer), for callers that run the model on many
+    /// samples in one call (`Predictor::predict_batch_with_accuracy` costs about half
+    /// per sample): books `s` (counters, sequence, time) and says whether the model
+    /// should see it. `false` means the answer is `InvalidInput` without a prediction.
+    /// Book samples in arrival order, then [`finish`](Self::finish) each.
+    pub fn book(&mut self, s: &VelocitySample, limits: &Limits) -> bool {
         self.counters.received += 1;
         let mut backwards = false;
         if let Some((last_seq, last_ts)) = self.last {
@@ -101,17 +115,23 @@ impl Tracker {
         // flagged sample instead of poisoning the rest of the stream.
         self.last = Some((s.seq, s.timestamp_ns));
 
-        let prediction = if backwards {
+        if backwards {
             self.counters.backwards += 1;
-            None
-        } else if input_ok(s, limits) {
-            // The receiver's speed accuracy (NaN when unknown) lets full-circle models
-            // report this receiver's σ rather than an average receiver's.
-            Some(predictor.predict_with_accuracy(s.v_north, s.v_east, s.speed_accuracy))
+            false
         } else {
-            None
-        };
+            input_ok(s, limits)
+        }
+    }
 
+    /// Second half of [`answer`](Self::answer): the answer to `s` from the model's
+    /// `prediction` (`None` when [`book`](Self::book) said the model must not see it).
+    /// `processing_ns` is left at 0.
+    pub fn finish(
+        &mut self,
+        s: &VelocitySample,
+        prediction: Option<Prediction>,
+        tag: &ModelTag,
+    ) -> HeadingEstimate {
         let (heading_deg, heading_std_deg, atan2_deg, speed, status) = match prediction {
             Some(Prediction {
                 heading_deg,
@@ -300,6 +320,64 @@ mod tests {
         assert_eq!(c.duplicates, 2);
         assert_eq!(c.backwards, 1);
         assert_eq!(c.invalid, 1);
+    }
+
+    /// `book` + one batch call + `finish` answers like `answer` one by one: the same
+    /// statuses and counters, values equal up to the batch kernel's rounding.
+    #[test]
+    fn batch_halves_answer_like_answer() {
+        let (mut p, l, tag) = setup();
+        let mut inputs: Vec<VelocitySample> = (0..40)
+            .map(|i| {
+                let mut s = sample(i, 10 * i, 0.3 * i as f32 - 6.0, 2.0 - 0.1 * i as f32);
+                s.speed_accuracy = if i % 2 == 0 { f32::NAN } else { 0.2 };
+                s
+            })
+            .collect();
+        inputs[3].v_north = f32::NAN; // invalid input
+        inputs[5].timestamp_ns = 0; // backwards in time
+        inputs[7].flags = flags::INVALID;
+        inputs[9] = sample(9, 90, 0.0, 0.0); // stationary
+        let (mut one, mut batched) = (Tracker::default(), Tracker::default());
+        let want: Vec<_> = inputs
+            .iter()
+            .map(|s| one.answer(s, &mut p, &l, &tag))
+            .collect();
+
+        let to_model: Vec<bool> = inputs.iter().map(|s| batched.book(s, &l)).collect();
+        let model_inputs: Vec<&VelocitySample> = inputs
+            .iter()
+            .zip(&to_model)
+            .filter(|(_, m)| **m)
+            .map(|(s, _)| s)
+            .collect();
+        let column = |f: fn(&VelocitySample) -> f32| -> Vec<f32> {
+            model_inputs.iter().map(|s| f(s)).collect()
+        };
+        let mut predictions = vec![p.predict(0.0, 0.0); model_inputs.len()];
+        p.predict_batch_with_accuracy(
+            &column(|s| s.v_north),
+            &column(|s| s.v_east),
+            &column(|s| s.speed_accuracy),
+            &mut predictions,
+        );
+        let mut next = predictions.into_iter();
+        for ((s, m), w) in inputs.iter().zip(&to_model).zip(&want) {
+            let got = batched.finish(s, m.then(|| next.next().unwrap()), &tag);
+            assert_eq!((got.seq, got.status), (w.seq, w.status), "{s:?}");
+            for (a, b) in [
+                (got.heading_deg, w.heading_deg),
+                (got.heading_std_deg, w.heading_std_deg),
+                (got.speed, w.speed),
+            ] {
+                assert!(
+                    a == b || (a.is_nan() && b.is_nan()) || (a - b).abs() < 1e-3,
+                    "{s:?}: {a} vs {b}"
+                );
+            }
+        }
+        assert_eq!(batched.counters, one.counters);
+        assert_eq!(one.counters.invalid, 3);
     }
 
     #[test]

@@ -106,3 +106,102 @@ fn receive_answer_publish_allocates_nothing() {
         "{publishes} allocations in {rounds} publishes"
     );
 }
+
+/// The batch path ghnetd takes when a source has several samples buffered (see
+/// `serve` in daemon/src/serve.rs): receive all, book each in order, one
+/// `predict_batch_with_accuracy`, then finish and publish each. Only iceoryx2's own
+/// per-loan object may allocate.
+#[test]
+fn batch_path_allocates_nothing() {
+    let ns = TestNamespace::new("noallocb");
+    let ipc = ns.ipc();
+    let gnss = VelocityPublisher::new(&ipc, "b").unwrap();
+    let velocity = VelocitySubscriber::new(&ipc, "b").unwrap();
+    let heading = HeadingPublisher::new(&ipc, "b").unwrap();
+
+    let model = Arc::new(ghnet_models::Model::builtin("paper-s1").unwrap());
+    let tag = ModelTag {
+        id: model.id(),
+        name: HeadingEstimate::encode_model_name(model.name()),
+    };
+    let mut predictor = ghnet_models::Predictor::new(model);
+    let limits = Limits { max_speed: 100.0 };
+    let mut tracker = Tracker::default();
+
+    // The daemon's scratch, made once.
+    const N: usize = 64;
+    let mut samples: Vec<VelocitySample> = Vec::with_capacity(N);
+    let mut to_model = [false; N];
+    let (mut vn, mut ve, mut acc) = ([0f32; N], [0f32; N], [0f32; N]);
+    let mut predictions = vec![predictor.predict(0.0, 0.0); N];
+
+    let mut ours = 0;
+    let mut publishes = 0;
+    let rounds = 6u64;
+    for round in 0..rounds {
+        for i in 0..N as u64 {
+            let seq = round * N as u64 + i;
+            // Valid, stationary and invalid inputs, as in the one-sample test.
+            let vn = match seq % 3 {
+                0 => 1.0,
+                1 => 0.0,
+                _ => f32::NAN,
+            };
+            gnss.publish(VelocitySample::new(seq, seq, vn, 2.0, 0.0))
+                .unwrap();
+        }
+        gnss.notify().unwrap();
+        let mut answers = [None; N];
+        // Round 0 is the warm-up (iceoryx2 connects ports lazily on first use).
+        let counted = allocations(|| {
+            velocity.drain_notifications().unwrap();
+            samples.clear();
+            while let Some(s) = velocity.try_recv().unwrap() {
+                samples.push(s);
+            }
+            assert_eq!(samples.len(), N);
+            let mut m = 0;
+            for (i, s) in samples.iter().enumerate() {
+                to_model[i] = tracker.book(s, &limits);
+                if to_model[i] {
+                    (vn[m], ve[m], acc[m]) = (s.v_north, s.v_east, s.speed_accuracy);
+                    m += 1;
+                }
+            }
+            predictor.predict_batch_with_accuracy(
+                &vn[..m],
+                &ve[..m],
+                &acc[..m],
+                &mut predictions[..m],
+            );
+            let mut k = 0;
+            for (i, s) in samples.iter().enumerate() {
+                let p = to_model[i].then(|| {
+                    k += 1;
+                    predictions[k - 1]
+                });
+                answers[i] = Some(tracker.finish(s, p, &tag));
+            }
+        });
+        let mut published = 0;
+        for a in answers {
+            published += allocations(|| heading.publish(a.unwrap()).unwrap());
+        }
+        let notified = allocations(|| heading.notify().unwrap());
+        if round > 0 {
+            ours += counted + notified;
+            publishes += published;
+        }
+    }
+    assert_eq!(
+        ours, 0,
+        "allocations in the batch receive/check/model/notify"
+    );
+    let answered = (rounds - 1) * N as u64;
+    assert!(
+        publishes <= answered,
+        "{publishes} allocations in {answered} publishes"
+    );
+    assert_eq!(tracker.counters.received, rounds * N as u64);
+    assert_eq!(tracker.counters.gaps + tracker.counters.duplicates, 0);
+}

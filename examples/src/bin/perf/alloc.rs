@@ -1,0 +1,121 @@
+//! Allocations per sample on the daemon's thread. A counting global allocator in
+//! this binary counts only on threads that ask for it; `ghnetd::run` (the same
+//! library the `ghnetd` binary is a shell around) runs in-process on such a thread,
+//! and the count over a window of answered samples, divided by the samples, is the
+//! figure. Everything on that thread counts: receive, model, both outputs and
+//! housekeeping; Zenoh's own runtime threads do not.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::time::Duration;
+
+use ghnet_client::testing::TestNamespace;
+use ghnet_client::zenoh::{Session, Wait};
+use ghnet_client::{HeadingSubscriber, VelocityPublisher};
+
+use crate::latency::moving_sample;
+
+struct Counting;
+
+thread_local! {
+    static COUNTED: Cell<bool> = const { Cell::new(false) };
+}
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: forwards to the system allocator; the bookkeeping itself never allocates.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTED.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Relaxed);
+        }
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if COUNTED.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Relaxed);
+        }
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// Allocations per answered sample on the daemon thread, one sample in flight,
+/// with the Zenoh output on (and a subscriber on `session`) or off.
+pub fn per_sample(
+    model: &str,
+    zenoh: Option<(&Session, String)>,
+    warmup: u64,
+    n: u64,
+) -> anyhow::Result<f64> {
+    let ns = TestNamespace::new("perfalloc");
+    let mut config = ghnetd::Config::default();
+    config.ipc.iceoryx2_global_prefix = Some(ns.global_prefix().to_owned());
+    config.ipc.iceoryx2_root_path = Some(ns.root_path().to_owned());
+    config.sources.static_sources = vec!["alloc0".into()];
+    config.sources.discovery = false;
+    config.model.name = model.to_owned();
+    config.stats.interval_s = 0;
+    config.zenoh.enabled = zenoh.is_some();
+    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", crate::target::free_port()?)];
+    if let Some((_, endpoint)) = &zenoh {
+        config.zenoh.connect = vec![endpoint.clone()];
+    }
+    let ipc = ns.ipc();
+    let shutdown = ghnetd::ShutdownFlag::new();
+    let stop = shutdown.clone();
+    let daemon = std::thread::spawn(move || {
+        COUNTED.with(|c| c.set(true));
+        ghnetd::run(config, stop)
+    });
+    let result = (|| -> anyhow::Result<f64> {
+        let gnss = VelocityPublisher::new(&ipc, "alloc0")?;
+        let headings = HeadingSubscriber::new(&ipc, "alloc0")?;
+        let _zenoh_sub = match &zenoh {
+            Some((session, _)) => Some(
+                session
+                    .declare_subscriber(ipc.zenoh_heading_key("alloc0")?)
+                    .callback(|_| {})
+                    .wait()
+                    .map_err(|e| anyhow::anyhow!("zenoh subscriber: {e}"))?,
+            ),
+            None => None,
+        };
+        let t0 = std::time::Instant::now();
+        while gnss.subscriber_count() == 0 || headings.publisher_count() == 0 {
+            anyhow::ensure!(!daemon.is_finished(), "in-process ghnetd ended early");
+            anyhow::ensure!(t0.elapsed() < Duration::from_secs(30), "ghnetd not serving");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let round = |seq: u64| -> anyhow::Result<()> {
+            gnss.send(moving_sample(seq))?;
+            loop {
+                match headings.recv_timeout(Duration::from_secs(5))? {
+                    Some(h) if h.seq == seq => return Ok(()),
+                    Some(_) => {}
+                    None => anyhow::bail!("no answer to {seq}"),
+                }
+            }
+        };
+        for seq in 0..warmup {
+            round(seq)?;
+        }
+        let before = ALLOCATIONS.load(Relaxed);
+        for seq in warmup..warmup + n {
+            round(seq)?;
+        }
+        Ok((ALLOCATIONS.load(Relaxed) - before) as f64 / n as f64)
+    })();
+    shutdown.request();
+    let stats = daemon
+        .join()
+        .map_err(|_| anyhow::anyhow!("in-process ghnetd panicked"))?;
+    let per_sample = result?;
+    stats?;
+    Ok(per_sample)
+}

@@ -1,0 +1,130 @@
+//! `perf --role echo`: the raw transport baseline. It has ghnetd's shape without its
+//! work: one iceoryx2 node, one `WaitSet` woken by each source's velocity listener,
+//! drain every buffered sample, answer each with a `HeadingEstimate` that only echoes
+//! `seq` and `timestamp_ns`, publish it on iceoryx2 and on Zenoh (same QoS as
+//! ghnetd: drop, high priority, express), notify once per batch. The difference
+//! between its figures and ghnetd's is what the daemon itself costs.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context;
+use ghnet_client::iceoryx2::prelude::*;
+use ghnet_client::iceoryx2::waitset::WaitSetRunResult;
+use ghnet_client::zenoh::{self, Wait};
+use ghnet_client::{
+    encode_zenoh, HeadingEstimate, HeadingPublisher, HeadingStatus, IpcConfig, VelocitySubscriber,
+};
+
+/// Where the echo lives; filled from the hidden `--role echo` flags.
+pub struct EchoArgs {
+    pub global_prefix: String,
+    pub root: PathBuf,
+    pub service_prefix: String,
+    pub sources: Vec<String>,
+    pub zenoh_listen: Option<String>,
+    pub zenoh_connect: Option<String>,
+}
+
+struct Ports {
+    velocity: VelocitySubscriber,
+    heading: HeadingPublisher,
+    zenoh: Option<zenoh::pubsub::Publisher<'static>>,
+}
+
+pub fn run(args: EchoArgs) -> anyhow::Result<()> {
+    let ipc =
+        IpcConfig::isolated(&args.global_prefix, &args.root)?.with_prefix(&args.service_prefix)?;
+    let session = match (&args.zenoh_listen, &args.zenoh_connect) {
+        (None, None) => None,
+        (l, c) => {
+            let listen: Vec<String> = l.iter().cloned().collect();
+            let connect: Vec<String> = c.iter().cloned().collect();
+            let config = ghnet_client::peer_config(&listen, &connect)
+                .map_err(|e| anyhow::anyhow!("zenoh config: {e}"))?;
+            Some(
+                zenoh::open(config)
+                    .wait()
+                    .map_err(|e| anyhow::anyhow!("zenoh session: {e}"))?,
+            )
+        }
+    };
+    // Default signal handling: SIGTERM ends the WaitSet loop below.
+    let node = NodeBuilder::new()
+        .config(&ipc.iceoryx2_config())
+        .create::<ipc::Service>()
+        .context("iceoryx2 node")?;
+    let mut ports = Vec::with_capacity(args.sources.len());
+    for s in &args.sources {
+        let zenoh = match &session {
+            Some(session) => Some(
+                session
+                    .declare_publisher(ipc.zenoh_heading_key(s)?)
+                    .congestion_control(zenoh::qos::CongestionControl::Drop)
+                    .priority(zenoh::qos::Priority::DataHigh)
+                    .express(true)
+                    .wait()
+                    .map_err(|e| anyhow::anyhow!("zenoh publisher: {e}"))?,
+            ),
+            None => None,
+        };
+        ports.push(Ports {
+            velocity: VelocitySubscriber::with_node(&node, &ipc, s)?,
+            heading: HeadingPublisher::with_node(&node, &ipc, s)?,
+            zenoh,
+        });
+    }
+    let waitset = WaitSetBuilder::new()
+        .create::<ipc::Service>()
+        .context("WaitSet")?;
+    let guards = ports
+        .iter()
+        .map(|p| waitset.attach_notification(p.velocity.listener()))
+        .collect::<Result<Vec<_>, _>>()
+        .context("attach")?;
+    for p in &ports {
+        serve(p);
+    }
+    loop {
+        let on_event = |id: WaitSetAttachmentId<ipc::Service>| {
+            if let Some(i) = guards.iter().position(|g| id.has_event_from(g)) {
+                serve(&ports[i]);
+            }
+            CallbackProgression::Continue
+        };
+        match waitset.wait_and_process_once_with_timeout(on_event, Duration::from_millis(100)) {
+            Ok(WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt) => break,
+            Ok(_) => {}
+            Err(e) => anyhow::bail!("WaitSet: {e:?}"),
+        }
+    }
+    Ok(())
+}
+
+/// The echo's whole per-wake-up work: what ghnetd's `serve` does minus the model.
+fn serve(p: &Ports) {
+    let _ = p.velocity.drain_notifications();
+    let mut any = false;
+    while let Ok(Some(s)) = p.velocity.try_recv() {
+        let h = HeadingEstimate {
+            timestamp_ns: s.timestamp_ns,
+            seq: s.seq,
+            processing_ns: 0,
+            heading_deg: 0.0,
+            heading_std_deg: 0.0,
+            atan2_deg: 0.0,
+            speed: 0.0,
+            model_id: 0,
+            status: HeadingStatus::Ok.as_u32(),
+            model_name: [0; ghnet_client::MODEL_NAME_LEN],
+        };
+        let _ = p.heading.publish(h);
+        if let Some(z) = &p.zenoh {
+            let _ = z.put(encode_zenoh(&h).to_vec()).wait();
+        }
+        any = true;
+    }
+    if any {
+        let _ = p.heading.notify();
+    }
+}
