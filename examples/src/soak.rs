@@ -1029,7 +1029,8 @@ mod tests {
     fn heading(seq: u64, heading_deg: f32, status: HeadingStatus) -> HeadingEstimate {
         HeadingEstimate {
             seq,
-            timestamp_ns: now_ns(),
+            // The same on both transports, as ghnetd sends it.
+            timestamp_ns: 1_700_000_000_000_000_000 + seq,
             heading_deg,
             status: status.as_u32(),
             ..HeadingEstimate::from_le_bytes(&[0; HeadingEstimate::SIZE])
