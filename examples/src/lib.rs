@@ -17,8 +17,12 @@
 //!   [`TablePrinter`] prints it from a thread of its own.
 //! - [`Collector`], [`Tally`], [`Percentiles`] — the bookkeeping of `soak`.
 //! - [`SpawnedDaemon`] — a `ghnetd` child process that is stopped and reaped.
+//! - [`soak`] — the soak run (`soak` binary and the CI soak test): exactly-once on
+//!   iceoryx2 and Zenoh, ghnetd's resident memory.
 
 #![warn(missing_docs)]
+
+pub mod soak;
 
 use std::fmt;
 use std::path::Path;

@@ -11,6 +11,7 @@ mod invalid;
 mod netns;
 mod python;
 mod shutdown;
+mod soak;
 mod zenoh_output;
 
 /// Path of the helper publisher binary of this package.

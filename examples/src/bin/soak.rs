@@ -1,42 +1,77 @@
-//! `soak`: N sources at a fixed rate against ghnetd; checks that every sample got
-//! exactly one heading and prints latency percentiles (sample timestamp → receipt).
+//! `soak`: N sources at a fixed rate against ghnetd for a long time. Every sample must
+//! get exactly one heading on iceoryx2 and on Zenoh (same value on both), and ghnetd's
+//! resident memory must stay flat after a warm-up.
 //!
-//! Teaches: the exactly-once contract (`seq` is echoed), one collector thread per
-//! heading subscriber (iceoryx2 ports are `!Send`), all publishers on one pacing
-//! node. Exit status 0 = every sample answered once, 1 = loss or duplicate, 2 = error.
+//! Teaches: the exactly-once contract (`seq` is echoed; `Stale` status messages answer
+//! no sample), one `WaitSet` for many heading subscribers, and how to watch a daemon's
+//! memory. The logic is `ghnet_examples::soak` (the CI soak test runs it too).
+//! Exit status 0 = pass, 1 = loss, duplicate, mismatch or memory growth, 2 = error.
 //!
 //! ```text
-//! cargo run --release -p ghnet-examples --bin soak -- --sources 4 --rate 100 --duration 30
-//! # or with a ghnetd of its own (static sources, stopped with SIGTERM at the end):
-//! cargo build --release -p ghnetd
-//! cargo run --release -p ghnet-examples --bin soak -- --spawn-daemon target/release/ghnetd
+//! cargo build --release -p ghnetd -p ghnet-examples
+//! # its own ghnetd (next to this binary), private namespace, Zenoh on a free port:
+//! target/release/soak --spawn-daemon --sources 100 --rate 10 --duration 3600 --report-every 60
+//! # against a running ghnetd (discovery on, sources.max_sources >= --sources):
+//! target/release/soak --sources 20 --daemon-pid "$(pidof ghnetd)"
 //! ```
 
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
+use anyhow::Context;
 use clap::Parser;
-use ghnet_client::{VelocityPublisher, VelocitySample};
-use ghnet_examples::{now_ns, pacing_node, wait_for_subscriber, Collector, CommonArgs};
-use ghnet_examples::{Pacer, Percentiles, SpawnedDaemon, Tally};
+use ghnet_examples::soak::{self, ghnetd_next_to_exe, Options, SpawnedGhnetd};
+use ghnet_examples::CommonArgs;
 
-/// Load test: every sample must be answered exactly once.
+/// Soak test: N sources × rate × duration; exactly-once on iceoryx2 and Zenoh, and
+/// ghnetd's resident memory flat after the warm-up.
 #[derive(Parser)]
 struct Args {
     #[command(flatten)]
     common: CommonArgs,
     /// Number of sources, named `soak<pid>-<i>`.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 100)]
     sources: usize,
     /// Samples per second per source.
-    #[arg(long, default_value_t = 100.0)]
+    #[arg(long, default_value_t = 10.0)]
     rate: f64,
     /// Seconds to publish.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 60.0)]
     duration: f64,
-    /// Start this ghnetd binary instead of using a running one.
+    /// Start a ghnetd of its own (this binary, or `ghnetd` next to `soak`) in a private
+    /// iceoryx2 namespace, serving exactly the soak's sources, Zenoh on a free
+    /// loopback port; SIGTERM at the end. It reads `GHNETD_CONFIG` (e.g. the model).
     #[arg(long, value_name = "PATH")]
-    spawn_daemon: Option<std::path::PathBuf>,
+    spawn_daemon: Option<Option<PathBuf>>,
+    /// Where the spawned ghnetd logs (default: a file in the temp dir, named at start).
+    #[arg(long, value_name = "FILE")]
+    daemon_log: Option<PathBuf>,
+    /// Seconds between the spawned ghnetd's per-source counter lines.
+    #[arg(long, default_value_t = 60, value_name = "S")]
+    daemon_stats_interval: u64,
+    /// A running ghnetd's process id, to watch its memory (`pidof ghnetd`).
+    #[arg(long, value_name = "PID", conflicts_with = "spawn_daemon")]
+    daemon_pid: Option<u32>,
+    /// A running ghnetd's Zenoh listen endpoint.
+    #[arg(long, value_name = "ENDPOINT", conflicts_with = "spawn_daemon",
+          default_value_t = format!("tcp/127.0.0.1:{}", ghnet_client::DEFAULT_ZENOH_PORT))]
+    connect: String,
+    /// Check iceoryx2 only (for a ghnetd with `zenoh.enabled = false`).
+    #[arg(long)]
+    no_zenoh: bool,
+    /// Seconds of memory samples not judged; default 20% of the run, at least 10.
+    #[arg(long, value_name = "S")]
+    warmup: Option<f64>,
+    /// Fail when ghnetd's RSS grows by this many kB or more after the warm-up.
+    #[arg(long, default_value_t = 1024, value_name = "KB")]
+    rss_limit_kb: u64,
+    /// Seconds between progress lines (answers, RSS first/last/min/max).
+    #[arg(long, default_value_t = 10.0, value_name = "S")]
+    report_every: f64,
+    /// Seconds to wait for the last headings after the last sample.
+    #[arg(long, default_value_t = 10.0, value_name = "S")]
+    drain_timeout: f64,
 }
 
 fn main() -> ExitCode {
@@ -50,64 +85,92 @@ fn main() -> ExitCode {
     }
 }
 
+fn seconds(s: f64, what: &str) -> anyhow::Result<Duration> {
+    Duration::try_from_secs_f64(s).with_context(|| format!("{what}: {s} is not a duration"))
+}
+
 fn run(args: Args) -> anyhow::Result<bool> {
-    let ipc = args.common.ipc()?;
-    let pid = std::process::id();
-    let names: Vec<String> = (0..args.sources)
-        .map(|i| format!("soak{pid}-{i}"))
-        .collect();
-    let total = (args.duration * args.rate).round() as u64;
-    let mut daemon = match &args.spawn_daemon {
-        Some(bin) => Some(SpawnedDaemon::ghnetd(bin, &args.common.prefix, &names)?),
-        None => None,
+    let prefix = &args.common.prefix;
+    let mut opts = Options::new(args.common.ipc()?, &format!("soak{}", std::process::id()));
+    opts.sources = args.sources;
+    opts.rate_hz = args.rate;
+    opts.duration = seconds(args.duration, "--duration")?;
+    opts.warmup = args.warmup.map(|w| seconds(w, "--warmup")).transpose()?;
+    opts.rss_limit_kb = args.rss_limit_kb;
+    opts.report_every = seconds(args.report_every, "--report-every")?;
+    opts.drain_timeout = seconds(args.drain_timeout, "--drain-timeout")?;
+    anyhow::ensure!(
+        args.rate > 0.0 && args.rate.is_finite(),
+        "--rate must be > 0"
+    );
+
+    let daemon = match &args.spawn_daemon {
+        Some(path) => {
+            let bin = match path {
+                Some(p) => p.clone(),
+                None => ghnetd_next_to_exe().context(
+                    "no ghnetd next to this binary: `cargo build --release -p ghnetd` \
+                     or pass --spawn-daemon PATH",
+                )?,
+            };
+            let log = (args.daemon_log.clone()).unwrap_or_else(|| {
+                std::env::temp_dir().join(format!("ghnet-soak-{}-ghnetd.log", std::process::id()))
+            });
+            let d = SpawnedGhnetd::start(
+                &bin,
+                prefix,
+                &opts.daemon_sources(),
+                args.daemon_stats_interval,
+                &log,
+                opts.patience,
+            )?;
+            println!(
+                "ghnetd {} (pid {}), log {}",
+                bin.display(),
+                d.pid(),
+                log.display()
+            );
+            opts.ipc = d.ipc(prefix)?;
+            opts.zenoh_connect = (!args.no_zenoh).then(|| d.zenoh_endpoint().to_owned());
+            opts.daemon_pid = Some(d.pid());
+            Some(d)
+        }
+        None => {
+            opts.zenoh_connect = (!args.no_zenoh).then(|| args.connect.clone());
+            opts.daemon_pid = args.daemon_pid;
+            None
+        }
     };
 
-    // Collectors first, so no heading is published before someone listens.
-    let (startup, idle) = (Duration::from_secs(20), Duration::from_secs(2));
-    let collectors: Vec<Collector> = (names.iter())
-        .map(|n| Collector::start(&ipc, n, total, startup, idle))
-        .collect::<anyhow::Result<_>>()?;
-    let node = pacing_node(&ipc, "ghnet-example-soak")?;
-    let pubs: Vec<VelocityPublisher> = (names.iter())
-        .map(|n| VelocityPublisher::with_node(&node, &ipc, n))
-        .collect::<Result<_, _>>()?;
-    let patience = Duration::from_secs(10);
-    wait_for_subscriber(&node, &pubs.iter().collect::<Vec<_>>(), patience, || {
-        daemon.as_mut().is_some_and(|d| d.has_exited())
+    let report = soak::run(&opts).with_context(|| {
+        format!(
+            "soak of {} sources (a running ghnetd needs discovery on and \
+             sources.max_sources >= {})",
+            opts.sources, opts.sources
+        )
     })?;
-
-    println!(
-        "soak: {} sources × {total} samples at {} Hz",
-        names.len(),
-        args.rate
-    );
-    let pacer = Pacer::new(args.rate)?;
-    for seq in 0..total {
-        for p in &pubs {
-            p.send(VelocitySample::new(now_ns(), seq, 3.0, 4.0, 0.0))?;
-        }
-        pacer.wait_for_slot(&node, seq + 1)?;
-    }
-
-    let (mut ok, mut latencies) = (true, Vec::new());
-    for (name, collector) in names.iter().zip(collectors) {
-        let got = collector.join()?;
-        let tally = Tally::of(total, got.iter().map(|a| a.seq));
-        println!("{name}: sent {total}  answered {}  {tally}", got.len());
-        ok &= tally.is_exactly_once();
-        latencies.extend(got.iter().map(|a| a.latency_ns));
-    }
-    if let Some(p) = Percentiles::of(latencies) {
-        println!("latency {p}");
-    }
+    print!("{report}");
     if let Some(d) = daemon {
         println!("ghnetd exited: {}", d.stop(Duration::from_secs(10))?);
     }
-    let verdict = if ok {
-        "PASS: every sample answered exactly once"
+    let failures = report.failures();
+    let interrupted = if report.interrupted {
+        format!(
+            " (interrupted: {} of {} samples per source)",
+            report.sent, report.planned
+        )
     } else {
-        "FAIL"
+        String::new()
     };
-    println!("{verdict}");
-    Ok(ok)
+    if failures.is_empty() {
+        let zenoh = if report.zenoh_checked {
+            " and Zenoh"
+        } else {
+            ""
+        };
+        println!("PASS: every sample answered exactly once on iceoryx2{zenoh}{interrupted}");
+    } else {
+        println!("FAIL{interrupted}: {}", failures.join("; "));
+    }
+    Ok(failures.is_empty())
 }
