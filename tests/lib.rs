@@ -12,7 +12,12 @@
 //! - [`Daemon`] — a running `ghnetd` in a namespace, its log in a file; SIGTERM,
 //!   `kill -9`, log and counter queries; killed and reaped on drop.
 //! - [`ChildPublisher`] — a publisher in another process (`ghnet-test-publisher`)
-//!   that crash tests can `kill -9`.
+//!   that crash tests can `kill -9`; [`ChildSubscriber`] the same for a heading
+//!   consumer (`ghnet-test-subscriber`).
+//! - [`recv_answer`] — the next heading that answers a sample, skipping the `Stale`
+//!   message ghnetd sends for a silent source (exactly-once checks use it).
+//! - [`list_nodes`] — the iceoryx2 nodes of a namespace, alive and dead, to check
+//!   that a killed process's resources are reclaimed.
 //! - [`test_model`] — the model the daemon runs, loaded the way the daemon loads it,
 //!   so tests can compare against an in-process computation.
 //! - [`wait_until`], [`WATCHDOG`] — bounded waits; a test never asserts a duration.
@@ -691,4 +696,140 @@ pub fn close(a: f32, b: f32, wrap_360: bool) -> bool {
     let tol = 1e-6 * b.abs().max(1.0);
     let d = (a - b).abs();
     d <= tol || (wrap_360 && (d - 360.0).abs() <= 1e-6 * 360.0)
+}
+
+/// The next heading that answers a sample, skipping `Stale` messages (ghnetd sends
+/// one when a source is silent for `sources.stale_after_ms`; it repeats the last
+/// sequence number and is not an answer). `None` after `timeout` without an answer.
+/// Exactly-once checks use this, so a slow test machine cannot turn a pause into a
+/// spurious extra message.
+pub fn recv_answer(
+    headings: &ghnet_client::HeadingSubscriber,
+    timeout: Duration,
+) -> Option<ghnet_client::HeadingEstimate> {
+    let deadline = Instant::now() + timeout;
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        let h = headings.recv_timeout(left).expect("receive")?;
+        if h.heading_status() != Some(ghnet_client::HeadingStatus::Stale) {
+            return Some(h);
+        }
+    }
+}
+
+/// The iceoryx2 nodes of `ns` by state: `(alive, dead)`, each as the `Debug` text of
+/// the node id plus the node name. A dead node is a process that died without
+/// releasing its resources; the next node created in the namespace (or ghnetd's
+/// housekeeping) removes them.
+pub fn list_nodes(ns: &Namespace) -> (Vec<String>, Vec<String>) {
+    use iceoryx2::prelude::*;
+    let mut alive = Vec::new();
+    let mut dead = Vec::new();
+    let describe = |id: &dyn std::fmt::Debug, details: &Option<iceoryx2::node::NodeDetails>| {
+        let name = details
+            .as_ref()
+            .map(|d| d.name().to_string())
+            .unwrap_or_default();
+        format!("{id:?} {name}")
+    };
+    Node::<ipc::Service>::list(&ns.ipc().iceoryx2_config(), |state| {
+        use iceoryx2::node::NodeView;
+        match state {
+            NodeState::Alive(v) => alive.push(describe(v.id(), v.details())),
+            NodeState::Dead(v) => dead.push(describe(v.id(), v.details())),
+            NodeState::Inaccessible(id) | NodeState::Undefined(id) => {
+                dead.push(format!("{id:?} (inaccessible or undefined)"))
+            }
+        }
+        CallbackProgression::Continue
+    })
+    .expect("list iceoryx2 nodes");
+    (alive, dead)
+}
+
+/// A `ghnet-test-subscriber` process: a `HeadingSubscriber` for one source in another
+/// process, printing `ready` once subscribed and then `<seq> <status>` per heading.
+/// Its lines arrive on a channel ([`next_line`](Self::next_line)). Killed and reaped
+/// on drop.
+#[derive(Debug)]
+pub struct ChildSubscriber {
+    child: Option<Child>,
+    lines: std::sync::mpsc::Receiver<String>,
+}
+
+impl ChildSubscriber {
+    /// Starts `binary` (pass `env!("CARGO_BIN_EXE_ghnet-test-subscriber")`) in `ns` and
+    /// waits for its `ready` line.
+    pub fn spawn(binary: &str, ns: &Namespace, source: &str) -> Self {
+        let mut cmd = Command::new(binary);
+        cmd.arg(ns.global_prefix())
+            .arg(ns.root_path())
+            .arg(source)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped());
+        let mut child = die_with_parent(&mut cmd)
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {binary}: {e}"));
+        let stdout = child.stdout.take().expect("piped stdout");
+        let (tx, lines) = std::sync::mpsc::channel();
+        // Only reads a pipe; the child's lifetime stays tied to the test thread.
+        std::thread::spawn(move || {
+            use std::io::BufRead;
+            for line in std::io::BufReader::new(stdout).lines() {
+                let Ok(line) = line else { break };
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        let mut this = Self {
+            child: Some(child),
+            lines,
+        };
+        let first = this.next_line();
+        assert_eq!(first.as_deref(), Some("ready"), "test subscriber start");
+        this
+    }
+
+    /// The next line, `None` if the process ended or [`WATCHDOG`] passed.
+    pub fn next_line(&mut self) -> Option<String> {
+        self.lines.recv_timeout(WATCHDOG).ok()
+    }
+
+    /// Reads lines until a heading with `seq >= min_seq` that is not `Stale`; returns
+    /// its seq. Panics if the process ends or the watchdog fires first.
+    pub fn answer_at_least(&mut self, min_seq: u64) -> u64 {
+        loop {
+            let line = self
+                .next_line()
+                .unwrap_or_else(|| panic!("test subscriber: no heading with seq >= {min_seq}"));
+            let (seq, status) = line.split_once(' ').expect("`<seq> <status>`");
+            let seq: u64 = seq.parse().expect("seq");
+            let stale = ghnet_client::HeadingStatus::Stale.as_u32().to_string();
+            if seq >= min_seq && status != stale {
+                return seq;
+            }
+        }
+    }
+
+    /// The process id.
+    pub fn pid(&self) -> u32 {
+        self.child.as_ref().expect("not yet killed").id()
+    }
+
+    /// `kill -9` and reap.
+    pub fn kill9(mut self) {
+        let mut child = self.child.take().expect("not yet killed");
+        child.kill().expect("SIGKILL");
+        child.wait().expect("reap");
+    }
+}
+
+impl Drop for ChildSubscriber {
+    fn drop(&mut self) {
+        if let Some(mut child) = self.child.take() {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
 }

@@ -13,6 +13,7 @@
 //! Ports of `ipc::Service` are `!Send` (iceoryx2 keeps an `Rc` inside): create a
 //! Sender/Receiver on the thread that uses it.
 
+use std::cell::Cell;
 use std::time::{Duration, Instant};
 
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
@@ -23,9 +24,7 @@ use iceoryx2::port::{LoanError, ReceiveError};
 use iceoryx2::prelude::*;
 
 use crate::names::{validate_source_name, IpcConfig, NameError};
-use crate::settings::{
-    open_event, open_pubsub, EventFactory, Message, PubSubFactory, SERVICE_SETTINGS,
-};
+use crate::settings::{open_event, open_pubsub, EventFactory, Message, PubSubFactory};
 use crate::{HeadingEstimate, VelocitySample};
 
 type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
@@ -104,8 +103,23 @@ pub enum OpenError {
         #[source]
         source: BoxError,
     },
-    /// The service is full (all publisher/subscriber/listener slots taken) or out of
-    /// memory.
+    /// A service limit is reached (all publisher, subscriber or node slots in use), or
+    /// the service exists with smaller limits than this process asks for. The message
+    /// names the ghnetd config key to raise (`ipc.max_publishers`,
+    /// `ipc.max_subscribers`, `ipc.max_nodes`, `ipc.subscriber_buffer`; in Rust
+    /// clients the same fields of [`ServiceSettings`](crate::ServiceSettings) via
+    /// [`IpcConfig::with_settings`]). Every process must use the same limits.
+    #[error("service `{service}`: {problem} ({key})")]
+    Limit {
+        /// Full service name.
+        service: String,
+        /// What ran out, e.g. `all 8 subscriber slots in use`.
+        problem: String,
+        /// The setting to raise, e.g. `ipc.max_subscribers`.
+        key: &'static str,
+    },
+    /// The port could not be created for another reason (out of memory, resources of
+    /// the service missing or inaccessible).
     #[error("cannot create {port} on service `{service}`")]
     Port {
         /// Full service name.
@@ -187,15 +201,20 @@ impl<T: Message> Pair<T> {
             pattern: "publish-subscribe",
             source: Box::new(e),
         })?;
-        let pubsub = open_pubsub::<T>(node, &service_name).map_err(|e| OpenError::Service {
-            service: name.clone(),
-            pattern: "publish-subscribe",
-            source: Box::new(e),
+        let settings = ipc.settings();
+        let pubsub = open_pubsub::<T>(node, &service_name, settings).map_err(|e| {
+            limits::pubsub_open(&name, settings, &e).unwrap_or_else(|| OpenError::Service {
+                service: name.clone(),
+                pattern: "publish-subscribe",
+                source: Box::new(e),
+            })
         })?;
-        let event = open_event(node, &service_name).map_err(|e| OpenError::Service {
-            service: name.clone(),
-            pattern: "event",
-            source: Box::new(e),
+        let event = open_event(node, &service_name, settings).map_err(|e| {
+            limits::event_open(&name, settings, &e).unwrap_or_else(|| OpenError::Service {
+                service: name.clone(),
+                pattern: "event",
+                source: Box::new(e),
+            })
         })?;
         Ok(Self {
             name,
@@ -208,10 +227,12 @@ impl<T: Message> Pair<T> {
         &self,
         port: &'static str,
     ) -> impl FnOnce(E) -> OpenError + '_ {
-        move |e| OpenError::Port {
-            service: self.name.clone(),
-            port,
-            source: Box::new(e),
+        move |e| {
+            limits::port(self, &e).unwrap_or_else(|| OpenError::Port {
+                service: self.name.clone(),
+                port,
+                source: Box::new(e),
+            })
         }
     }
 }
@@ -317,13 +338,18 @@ pub struct Receiver<T: Message> {
     listener: Listener<ipc::Service>,
     pair: Pair<T>,
     _node: Option<Node<ipc::Service>>,
+    /// Sequence number of the last message returned, for [`missed`](Self::missed).
+    /// `Cell`: receiving takes `&self`, and the type is `!Send` anyway.
+    last_seq: Cell<Option<u64>>,
+    missed: Cell<u64>,
 }
 
 impl<T: Message> Receiver<T> {
     /// Creates its own iceoryx2 node, opens or creates the service pair for `source`
     /// and creates a subscriber (buffer
-    /// [`SERVICE_SETTINGS.subscriber_buffer_size`](crate::ServiceSettings::subscriber_buffer_size))
-    /// and a listener on it.
+    /// [`subscriber_buffer_size`](crate::ServiceSettings::subscriber_buffer_size) of
+    /// `ipc`'s settings, 128 by default) and a listener on it. Fails with
+    /// [`OpenError::Limit`] when all subscriber slots of the service are in use.
     pub fn new(ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
         validate_source_name(source)?;
         let node = create_node(ipc, &format!("{}-sub", T::SERVICE_SUFFIX))?;
@@ -343,24 +369,29 @@ impl<T: Message> Receiver<T> {
 
     fn build(node: &Node<ipc::Service>, ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
         let pair = Pair::<T>::open(node, ipc, source)?;
-        // Listener first: once a publisher sees this subscriber (subscriber_count),
-        // its notifications must already have somewhere to go.
+        // Subscriber first, so that a full service reports the subscriber slots (the
+        // setting users know) rather than the listener slots that follow them. A
+        // message delivered before the listener exists loses only its wake-up: every
+        // receive call looks into the buffer before it waits, and the daemon serves
+        // every source once after (re)attaching its listeners.
+        let subscriber = pair
+            .pubsub
+            .subscriber_builder()
+            .buffer_size(ipc.settings().subscriber_buffer_size)
+            .create()
+            .map_err(pair.port_error("subscriber"))?;
         let listener = pair
             .event
             .listener_builder()
             .create()
             .map_err(pair.port_error("listener"))?;
-        let subscriber = pair
-            .pubsub
-            .subscriber_builder()
-            .buffer_size(SERVICE_SETTINGS.subscriber_buffer_size)
-            .create()
-            .map_err(pair.port_error("subscriber"))?;
         Ok(Self {
             subscriber,
             listener,
             pair,
             _node: None,
+            last_seq: Cell::new(None),
+            missed: Cell::new(0),
         })
     }
 
@@ -441,11 +472,189 @@ impl<T: Message> Receiver<T> {
         &self.pair.name
     }
 
+    /// Messages this receiver never saw, counted from gaps in the sequence numbers of
+    /// consecutive messages (`seq` 4 then 7 adds 2).
+    ///
+    /// The main cause is a reader that fell behind: iceoryx2's safe overflow lets a
+    /// full subscriber buffer overwrite its oldest message instead of blocking the
+    /// publisher, and iceoryx2 0.10 tells neither side (the publisher's `send` only
+    /// reports how many subscribers got the message). A gap already in the stream
+    /// counts too: a source that skipped numbers, or velocity samples the daemon
+    /// itself missed (its `gaps` counter). Not counted: messages before the first one
+    /// this receiver got, and a restart of the sequence (a number not above the last
+    /// one, e.g. a restarted publisher, or a `Stale` heading repeating the last
+    /// number); a restarted publisher that continues *above* the old numbers shows as
+    /// one large gap.
+    pub fn missed(&self) -> u64 {
+        self.missed.get()
+    }
+
     fn receive(&self) -> Result<Option<T>, RecvError> {
-        Ok(self
+        let got = self
             .subscriber
             .receive()
             .map_err(RecvError::Receive)?
-            .map(|sample| *sample))
+            .map(|sample| *sample);
+        if let Some(v) = &got {
+            let seq = v.seq();
+            if let Some(last) = self.last_seq.get() {
+                if seq > last {
+                    self.missed.set(self.missed.get() + (seq - last - 1));
+                }
+            }
+            self.last_seq.set(Some(seq));
+        }
+        Ok(got)
+    }
+}
+
+/// Maps iceoryx2's limit errors to [`OpenError::Limit`], naming the setting to raise.
+mod limits {
+    use iceoryx2::port::listener::ListenerCreateError;
+    use iceoryx2::port::notifier::NotifierCreateError;
+    use iceoryx2::port::publisher::PublisherCreateError;
+    use iceoryx2::port::subscriber::SubscriberCreateError;
+    use iceoryx2::service::builder::event::{EventOpenError, EventOpenOrCreateError};
+    use iceoryx2::service::builder::publish_subscribe::{
+        PublishSubscribeOpenError, PublishSubscribeOpenOrCreateError,
+    };
+    use iceoryx2::service::port_factory::PortFactory;
+
+    use super::{OpenError, Pair};
+    use crate::settings::{Message, ServiceSettings};
+
+    const PUBLISHERS: &str = "ipc.max_publishers";
+    const SUBSCRIBERS: &str = "ipc.max_subscribers";
+    const NODES: &str = "ipc.max_nodes";
+    const BUFFER: &str = "ipc.subscriber_buffer";
+
+    fn limit(service: &str, problem: String, key: &'static str) -> Option<OpenError> {
+        Some(OpenError::Limit {
+            service: service.to_owned(),
+            problem,
+            key,
+        })
+    }
+
+    fn smaller(what: &str, asked: usize) -> String {
+        format!(
+            "exists with fewer {what} than the {asked} this process asks for; every process must use the same limits"
+        )
+    }
+
+    pub(super) fn pubsub_open(
+        service: &str,
+        s: &ServiceSettings,
+        e: &PublishSubscribeOpenOrCreateError,
+    ) -> Option<OpenError> {
+        use PublishSubscribeOpenError as E;
+        let PublishSubscribeOpenOrCreateError::PublishSubscribeOpenError(e) = e else {
+            return None;
+        };
+        match e {
+            E::ExceedsMaxNumberOfNodes => limit(
+                service,
+                format!("all node slots in use ({} requested)", s.max_nodes),
+                NODES,
+            ),
+            E::DoesNotSupportRequestedAmountOfPublishers => limit(
+                service,
+                smaller("publisher slots", s.max_publishers),
+                PUBLISHERS,
+            ),
+            E::DoesNotSupportRequestedAmountOfSubscribers => limit(
+                service,
+                smaller("subscriber slots", s.max_subscribers),
+                SUBSCRIBERS,
+            ),
+            E::DoesNotSupportRequestedAmountOfNodes => {
+                limit(service, smaller("node slots", s.max_nodes), NODES)
+            }
+            E::DoesNotSupportRequestedMinBufferSize => limit(
+                service,
+                smaller("subscriber buffer slots", s.subscriber_buffer_size),
+                BUFFER,
+            ),
+            _ => None,
+        }
+    }
+
+    pub(super) fn event_open(
+        service: &str,
+        s: &ServiceSettings,
+        e: &EventOpenOrCreateError,
+    ) -> Option<OpenError> {
+        use EventOpenError as E;
+        let EventOpenOrCreateError::EventOpenError(e) = e else {
+            return None;
+        };
+        match e {
+            E::ExceedsMaxNumberOfNodes => limit(
+                service,
+                format!("all node slots in use ({} requested)", s.max_nodes),
+                NODES,
+            ),
+            E::DoesNotSupportRequestedAmountOfNotifiers => limit(
+                service,
+                smaller("notifier slots", s.max_notifiers),
+                PUBLISHERS,
+            ),
+            E::DoesNotSupportRequestedAmountOfListeners => limit(
+                service,
+                smaller("listener slots", s.max_listeners),
+                SUBSCRIBERS,
+            ),
+            E::DoesNotSupportRequestedAmountOfNodes => {
+                limit(service, smaller("node slots", s.max_nodes), NODES)
+            }
+            _ => None,
+        }
+    }
+
+    /// `e` is one of the four port creation errors; anything else is not a limit.
+    pub(super) fn port<T: Message, E: std::error::Error + 'static>(
+        pair: &Pair<T>,
+        e: &E,
+    ) -> Option<OpenError> {
+        let any = e as &dyn std::error::Error;
+        let pubsub = pair.pubsub.static_config();
+        let event = pair.event.static_config();
+        let full = |n: usize, what: &str| format!("all {n} {what} slots in use");
+        let name = &pair.name;
+        if let Some(e) = any.downcast_ref::<PublisherCreateError>() {
+            if *e == PublisherCreateError::ExceedsMaxSupportedPublishers {
+                return limit(name, full(pubsub.max_publishers(), "publisher"), PUBLISHERS);
+            }
+        } else if let Some(e) = any.downcast_ref::<SubscriberCreateError>() {
+            match e {
+                SubscriberCreateError::ExceedsMaxSupportedSubscribers => {
+                    return limit(
+                        name,
+                        full(pubsub.max_subscribers(), "subscriber"),
+                        SUBSCRIBERS,
+                    )
+                }
+                SubscriberCreateError::BufferSizeExceedsMaxSupportedBufferSizeOfService => {
+                    return limit(
+                        name,
+                        format!(
+                            "subscriber buffer larger than the service's {}",
+                            pubsub.subscriber_max_buffer_size()
+                        ),
+                        BUFFER,
+                    )
+                }
+                _ => {}
+            }
+        } else if let Some(e) = any.downcast_ref::<NotifierCreateError>() {
+            if *e == NotifierCreateError::ExceedsMaxSupportedNotifiers {
+                return limit(name, full(event.max_notifiers(), "notifier"), PUBLISHERS);
+            }
+        } else if let Some(e) = any.downcast_ref::<ListenerCreateError>() {
+            if *e == ListenerCreateError::ExceedsMaxSupportedListeners {
+                return limit(name, full(event.max_listeners(), "listener"), SUBSCRIBERS);
+            }
+        }
+        None
     }
 }

@@ -18,6 +18,7 @@
 
 use std::path::PathBuf;
 
+use crate::settings::{ServiceSettings, SERVICE_SETTINGS};
 use iceoryx2::config::Config;
 use iceoryx2::prelude::*;
 
@@ -121,6 +122,7 @@ pub fn validate_prefix(prefix: &str) -> Result<(), NameError> {
 pub struct IpcConfig {
     prefix: String,
     iceoryx2: Option<Config>,
+    settings: ServiceSettings,
 }
 
 impl Default for IpcConfig {
@@ -128,6 +130,7 @@ impl Default for IpcConfig {
         Self {
             prefix: DEFAULT_PREFIX.to_owned(),
             iceoryx2: None,
+            settings: SERVICE_SETTINGS,
         }
     }
 }
@@ -138,7 +141,7 @@ impl IpcConfig {
         validate_prefix(prefix)?;
         Ok(Self {
             prefix: prefix.to_owned(),
-            iceoryx2: None,
+            ..Self::default()
         })
     }
 
@@ -173,6 +176,23 @@ impl IpcConfig {
     pub fn with_iceoryx2_config(mut self, config: Config) -> Self {
         self.iceoryx2 = Some(config);
         self
+    }
+
+    /// Uses `settings` instead of [`SERVICE_SETTINGS`] when opening or creating
+    /// services, e.g. more subscriber slots for many consumers. Settings of an existing
+    /// service are minimums: every process of the deployment (publishers, ghnetd with
+    /// the matching `ipc.*` keys, consumers) must use the same values, or the one
+    /// asking for more than the creator gave gets [`OpenError::Limit`].
+    ///
+    /// [`OpenError::Limit`]: crate::OpenError::Limit
+    pub fn with_settings(mut self, settings: ServiceSettings) -> Self {
+        self.settings = settings;
+        self
+    }
+
+    /// The service settings used to open or create services.
+    pub fn settings(&self) -> &ServiceSettings {
+        &self.settings
     }
 
     /// The service prefix.

@@ -1,11 +1,18 @@
-//! The iceoryx2 service settings of every ghnet service, chosen here and only here.
+//! The iceoryx2 service settings of every ghnet service: the defaults are chosen here
+//! and only here ([`SERVICE_SETTINGS`]); a deployment that needs more slots raises
+//! them with [`IpcConfig::with_settings`](crate::IpcConfig::with_settings) (ghnetd:
+//! `ipc.max_publishers`, `ipc.max_subscribers`, `ipc.max_nodes`,
+//! `ipc.subscriber_buffer`).
 //!
 //! iceoryx2 fixes a service's limits when the service is *created*; whoever opens it
 //! later may ask for at most those limits (asking for more fails with e.g.
 //! `DoesNotSupportRequestedAmountOfPublishers`). Since either the publisher, the
 //! daemon or a subscriber may be first, all of them create with, and open asking
-//! for, exactly [`SERVICE_SETTINGS`]. Clients in other languages must do the same
-//! (see the table in `client/README.md`), or open without requesting limits.
+//! for, the *same* settings: raise a limit in every process of a deployment, not only
+//! in ghnetd. Clients in other languages must do the same (see the table in
+//! `client/README.md`), or open without requesting limits. When a limit is reached,
+//! opening fails with [`OpenError::Limit`](crate::OpenError::Limit), whose message
+//! names the setting to raise.
 
 use std::fmt::Debug;
 
@@ -41,8 +48,10 @@ pub struct ServiceSettings {
     pub max_listeners: usize,
 }
 
-/// The settings of every ghnet service. Changing them changes the wire contract for
-/// services that already exist (opening asks for these minimums).
+/// The default settings of every ghnet service (what [`IpcConfig`](crate::IpcConfig)
+/// uses unless [`with_settings`](crate::IpcConfig::with_settings) replaces them, and
+/// ghnetd's `[ipc]` defaults). Changing them changes the wire contract for services
+/// that already exist (opening asks for these minimums).
 pub const SERVICE_SETTINGS: ServiceSettings = ServiceSettings {
     max_publishers: 4,
     max_subscribers: 8,
@@ -58,13 +67,51 @@ pub const SERVICE_SETTINGS: ServiceSettings = ServiceSettings {
 pub trait Message: Debug + Copy + ZeroCopySend + sealed::Sealed + 'static {
     /// Last level of the service name, `velocity` or `heading`.
     const SERVICE_SUFFIX: &'static str;
+    /// The message's sequence number (`seq`), for [`Receiver::missed`](crate::Receiver::missed).
+    fn seq(&self) -> u64;
 }
 
 impl Message for crate::VelocitySample {
     const SERVICE_SUFFIX: &'static str = crate::names::VELOCITY_SUFFIX;
+    fn seq(&self) -> u64 {
+        self.seq
+    }
 }
 impl Message for crate::HeadingEstimate {
     const SERVICE_SUFFIX: &'static str = crate::names::HEADING_SUFFIX;
+    fn seq(&self) -> u64 {
+        self.seq
+    }
+}
+
+impl Default for ServiceSettings {
+    fn default() -> Self {
+        SERVICE_SETTINGS
+    }
+}
+
+impl ServiceSettings {
+    /// [`SERVICE_SETTINGS`] with the four limits a deployment may raise (ghnetd's
+    /// `ipc.max_publishers`, `ipc.max_subscribers`, `ipc.max_nodes`,
+    /// `ipc.subscriber_buffer`). Notifier and listener slots follow publishers and
+    /// subscribers one to one, since every [`Sender`](crate::Sender) holds one
+    /// notifier and every [`Receiver`](crate::Receiver) one listener.
+    pub fn with_limits(
+        max_publishers: usize,
+        max_subscribers: usize,
+        max_nodes: usize,
+        subscriber_buffer_size: usize,
+    ) -> Self {
+        Self {
+            max_publishers,
+            max_subscribers,
+            max_nodes,
+            subscriber_buffer_size,
+            history_size: SERVICE_SETTINGS.history_size,
+            max_notifiers: max_publishers,
+            max_listeners: max_subscribers,
+        }
+    }
 }
 
 mod sealed {
@@ -76,15 +123,15 @@ mod sealed {
 pub(crate) type PubSubFactory<T> = publish_subscribe::PortFactory<ipc::Service, T, ()>;
 pub(crate) type EventFactory = event::PortFactory<ipc::Service>;
 
-/// Opens or creates the publish-subscribe service `name` with [`SERVICE_SETTINGS`].
+/// Opens or creates the publish-subscribe service `name` with `s`.
 pub(crate) fn open_pubsub<T: Message>(
     node: &Node<ipc::Service>,
     name: &ServiceName,
+    s: &ServiceSettings,
 ) -> Result<
     PubSubFactory<T>,
     iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError,
 > {
-    let s = SERVICE_SETTINGS;
     node.service_builder(name)
         .publish_subscribe::<T>()
         .max_publishers(s.max_publishers)
@@ -97,12 +144,12 @@ pub(crate) fn open_pubsub<T: Message>(
 }
 
 /// Opens or creates the event service `name` (paired with the publish-subscribe
-/// service of the same name) with [`SERVICE_SETTINGS`].
+/// service of the same name) with `s`.
 pub(crate) fn open_event(
     node: &Node<ipc::Service>,
     name: &ServiceName,
+    s: &ServiceSettings,
 ) -> Result<EventFactory, iceoryx2::service::builder::event::EventOpenOrCreateError> {
-    let s = SERVICE_SETTINGS;
     node.service_builder(name)
         .event()
         .max_notifiers(s.max_notifiers)

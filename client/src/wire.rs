@@ -155,8 +155,12 @@ pub enum HeadingStatus {
     /// accuracy, receiver-flagged invalid, timestamp going backwards). Heading fields
     /// are NaN.
     InvalidInput = 3,
-    /// Reserved for a later output that re-publishes the last estimate when the
-    /// source stops; never sent by the current daemon.
+    /// The source has sent nothing for longer than ghnetd's `sources.stale_after_ms`
+    /// (default 2.5 s): a publisher that crashed, hung or lost its receiver. Sent ONCE
+    /// per silence, *not* an answer to a sample: `seq` and `timestamp_ns` repeat the
+    /// last sample's, heading, std, atan2 and speed are NaN, `processing_ns` is 0.
+    /// Consumers that match answers to samples skip it; a filter stops trusting the
+    /// last heading. When samples come again they are answered normally.
     Stale = 4,
 }
 

@@ -112,7 +112,11 @@ fn service_created_with_smaller_limits_is_refused() {
         .open_or_create()
         .unwrap();
     match VelocityPublisher::new(&ipc, "gnss0") {
-        Err(OpenError::Service { service, .. }) => assert_eq!(service, "ghnet/gnss0/velocity"),
+        // Smaller limits than ours: the error names the setting to raise.
+        Err(OpenError::Limit { service, key, .. }) => {
+            assert_eq!(service, "ghnet/gnss0/velocity");
+            assert!(key.starts_with("ipc."), "{key}");
+        }
         Err(e) => panic!("unexpected error {e}"),
         Ok(_) => panic!("open must fail"),
     }

@@ -7,7 +7,8 @@ use ghnet_models::{Prediction, Predictor, Status};
 use serde::Serialize;
 
 /// Counters of one source. Every received sample is answered exactly once (unless
-/// the send itself fails), so `received == answered + send_errors` at all times.
+/// the send itself fails), so `received == answered + send_errors` at all times;
+/// `Stale` messages are counted apart (`stale`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct Counters {
     /// Samples taken from the velocity service.
@@ -27,6 +28,10 @@ pub struct Counters {
     pub backwards: u64,
     /// Answers that could not be published (loan or send failed).
     pub send_errors: u64,
+    /// `Stale` messages published: times the source went silent for longer than
+    /// `sources.stale_after_ms`. Not answers (no sample behind them), so not part of
+    /// `answered`.
+    pub stale: u64,
 }
 
 impl Counters {
@@ -39,6 +44,23 @@ impl Counters {
         self.duplicates += o.duplicates;
         self.backwards += o.backwards;
         self.send_errors += o.send_errors;
+        self.stale += o.stale;
+    }
+}
+
+/// The message that tells consumers a source went silent: the sequence number and
+/// timestamp of `last` (the last answer, so of the last sample received), status
+/// `Stale`, every measured field NaN and `processing_ns` 0, since no sample was
+/// processed. Consumers that match answers to samples skip it.
+pub fn stale_message(last: &HeadingEstimate) -> HeadingEstimate {
+    HeadingEstimate {
+        processing_ns: 0,
+        heading_deg: f32::NAN,
+        heading_std_deg: f32::NAN,
+        atan2_deg: f32::NAN,
+        speed: f32::NAN,
+        status: HeadingStatus::Stale.as_u32(),
+        ..*last
     }
 }
 
@@ -378,6 +400,18 @@ mod tests {
         }
         assert_eq!(batched.counters, one.counters);
         assert_eq!(one.counters.invalid, 3);
+    }
+
+    #[test]
+    fn stale_message_echoes_the_last_sample() {
+        let (mut p, l, tag) = setup();
+        let last = Tracker::default().answer(&sample(41, 4100, 0.0, 5.0), &mut p, &l, &tag);
+        let s = stale_message(&last);
+        assert_eq!((s.seq, s.timestamp_ns), (41, 4100));
+        assert_eq!(s.heading_status(), Some(HeadingStatus::Stale));
+        assert!(s.heading_deg.is_nan() && s.heading_std_deg.is_nan());
+        assert_eq!(s.processing_ns, 0);
+        assert_eq!((s.model_id, s.model_name), (tag.id, tag.name));
     }
 
     #[test]

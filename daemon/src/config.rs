@@ -12,7 +12,7 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::Parser;
 use ghnet_client::iceoryx2;
-use ghnet_client::{names, IpcConfig};
+use ghnet_client::{names, IpcConfig, ServiceSettings};
 use serde::{Deserialize, Serialize};
 
 /// Upper bound for `sources.max_sources`: every source is one WaitSet attachment and
@@ -49,17 +49,43 @@ pub struct IpcSection {
     /// iceoryx2 root path override (node and service records, default `/tmp/iceoryx2/`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub iceoryx2_root_path: Option<PathBuf>,
+    /// Publishers per service (ghnetd holds one per heading service; a source one per
+    /// velocity service, plus slack for a restarted one next to its dead predecessor).
+    /// Like every limit here: a *minimum* when the service already exists, so every
+    /// process of the deployment must use the same value (Rust clients:
+    /// `ServiceSettings` via `IpcConfig::with_settings`).
+    pub max_publishers: usize,
+    /// Subscribers per service (ghnetd holds one per velocity service; consumers,
+    /// recorders and monitors one each per heading service).
+    pub max_subscribers: usize,
+    /// Processes (iceoryx2 nodes) that may have one service open at once.
+    pub max_nodes: usize,
+    /// Messages a subscriber buffers before safe overflow overwrites the oldest (a
+    /// slow reader never blocks the publisher; it sees sequence gaps instead).
+    pub subscriber_buffer: usize,
 }
 
 impl Default for IpcSection {
     fn default() -> Self {
+        let s = ghnet_client::SERVICE_SETTINGS;
         Self {
             service_prefix: names::DEFAULT_PREFIX.to_owned(),
             iceoryx2_global_prefix: None,
             iceoryx2_root_path: None,
+            max_publishers: s.max_publishers,
+            max_subscribers: s.max_subscribers,
+            max_nodes: s.max_nodes,
+            subscriber_buffer: s.subscriber_buffer_size,
         }
     }
 }
+
+/// Upper bound of the `ipc.max_*` slot limits: each slot costs shared memory in every
+/// service, and far more than one host needs.
+pub const MAX_SLOTS_LIMIT: usize = 1024;
+
+/// Upper bound of `ipc.subscriber_buffer` (messages).
+pub const MAX_SUBSCRIBER_BUFFER: usize = 65_536;
 
 /// `[sources]`
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -75,6 +101,12 @@ pub struct SourcesSection {
     pub discovery_interval_ms: u64,
     /// Most sources served at once (static + discovered); more are logged and ignored.
     pub max_sources: usize,
+    /// A source that has sent nothing for longer than this (ms) gets ONE
+    /// `HeadingEstimate` with status `Stale` (sequence number and timestamp of its last
+    /// sample, heading and σ NaN), so a consumer learns that the silence is not a
+    /// stationary vehicle; checked every `discovery_interval_ms`. A discovered source
+    /// whose publishers are gone is dropped only after its Stale message. 0 = off.
+    pub stale_after_ms: u64,
 }
 
 impl Default for SourcesSection {
@@ -84,6 +116,7 @@ impl Default for SourcesSection {
             discovery: true,
             discovery_interval_ms: 250,
             max_sources: 32,
+            stale_after_ms: 2500,
         }
     }
 }
@@ -259,6 +292,18 @@ pub struct Cli {
     /// ipc.iceoryx2_root_path: iceoryx2 root directory (isolated instances).
     #[arg(long, value_name = "DIR")]
     pub iceoryx2_root_path: Option<PathBuf>,
+    /// ipc.max_publishers: publisher slots per service (all processes must agree).
+    #[arg(long, value_name = "N")]
+    pub max_publishers: Option<usize>,
+    /// ipc.max_subscribers: subscriber slots per service (all processes must agree).
+    #[arg(long, value_name = "N")]
+    pub max_subscribers: Option<usize>,
+    /// ipc.max_nodes: processes per service (all processes must agree).
+    #[arg(long, value_name = "N")]
+    pub max_nodes: Option<usize>,
+    /// ipc.subscriber_buffer: messages buffered per subscriber (all processes must agree).
+    #[arg(long, value_name = "N")]
+    pub subscriber_buffer: Option<usize>,
     /// sources.static: serve this source from the start (repeatable; replaces the
     /// file's list).
     #[arg(long = "source", value_name = "NAME")]
@@ -272,6 +317,10 @@ pub struct Cli {
     /// sources.max_sources: most sources served at once.
     #[arg(long, value_name = "N")]
     pub max_sources: Option<usize>,
+    /// sources.stale_after_ms: silence after which a source gets one Stale message,
+    /// 0 = off.
+    #[arg(long, value_name = "MS")]
+    pub stale_after_ms: Option<u64>,
     /// model.name: built-in model name or .safetensors path.
     #[arg(long, value_name = "NAME|PATH")]
     pub model: Option<String>,
@@ -351,6 +400,18 @@ impl Config {
         if let Some(v) = &cli.iceoryx2_root_path {
             self.ipc.iceoryx2_root_path = Some(v.clone());
         }
+        if let Some(v) = cli.max_publishers {
+            self.ipc.max_publishers = v;
+        }
+        if let Some(v) = cli.max_subscribers {
+            self.ipc.max_subscribers = v;
+        }
+        if let Some(v) = cli.max_nodes {
+            self.ipc.max_nodes = v;
+        }
+        if let Some(v) = cli.subscriber_buffer {
+            self.ipc.subscriber_buffer = v;
+        }
         if !cli.sources.is_empty() {
             self.sources.static_sources = cli.sources.clone();
         }
@@ -362,6 +423,9 @@ impl Config {
         }
         if let Some(v) = cli.max_sources {
             self.sources.max_sources = v;
+        }
+        if let Some(v) = cli.stale_after_ms {
+            self.sources.stale_after_ms = v;
         }
         if let Some(v) = &cli.model {
             self.model.name = v.clone();
@@ -401,6 +465,19 @@ impl Config {
         names::validate_prefix(&self.ipc.service_prefix).context("ipc.service_prefix")?;
         // Builds the iceoryx2 config, which checks prefix and root path.
         self.ipc_config()?;
+        for (key, v) in [
+            ("ipc.max_publishers", self.ipc.max_publishers),
+            ("ipc.max_subscribers", self.ipc.max_subscribers),
+            ("ipc.max_nodes", self.ipc.max_nodes),
+        ] {
+            if !(1..=MAX_SLOTS_LIMIT).contains(&v) {
+                bail!("{key}: {v} is outside 1..={MAX_SLOTS_LIMIT}");
+            }
+        }
+        let b = self.ipc.subscriber_buffer;
+        if !(1..=MAX_SUBSCRIBER_BUFFER).contains(&b) {
+            bail!("ipc.subscriber_buffer: {b} is outside 1..={MAX_SUBSCRIBER_BUFFER}");
+        }
 
         let mut seen = BTreeSet::new();
         for s in &self.sources.static_sources {
@@ -412,6 +489,10 @@ impl Config {
         let si = self.sources.discovery_interval_ms;
         if !(10..=60_000).contains(&si) {
             bail!("sources.discovery_interval_ms: {si} is outside 10..=60000");
+        }
+        let stale = self.sources.stale_after_ms;
+        if stale != 0 && !(10..=3_600_000).contains(&stale) {
+            bail!("sources.stale_after_ms: {stale} is outside 10..=3600000 (0 = off)");
         }
         let max = self.sources.max_sources;
         if !(1..=MAX_SOURCES_LIMIT).contains(&max) {
@@ -465,7 +546,15 @@ impl Config {
     /// The client-side view: service prefix plus the iceoryx2 config with overrides
     /// applied on top of the system iceoryx2 config.
     pub fn ipc_config(&self) -> anyhow::Result<IpcConfig> {
-        let ipc = IpcConfig::new(&self.ipc.service_prefix).context("ipc.service_prefix")?;
+        let i = &self.ipc;
+        let ipc = IpcConfig::new(&i.service_prefix)
+            .context("ipc.service_prefix")?
+            .with_settings(ServiceSettings::with_limits(
+                i.max_publishers,
+                i.max_subscribers,
+                i.max_nodes,
+                i.subscriber_buffer,
+            ));
         if self.ipc.iceoryx2_global_prefix.is_none() && self.ipc.iceoryx2_root_path.is_none() {
             return Ok(ipc);
         }
@@ -491,6 +580,12 @@ impl Config {
     /// `sources.discovery_interval_ms` as a duration.
     pub fn discovery_interval(&self) -> Duration {
         Duration::from_millis(self.sources.discovery_interval_ms)
+    }
+
+    /// `sources.stale_after_ms` as a duration, `None` when disabled.
+    pub fn stale_after(&self) -> Option<Duration> {
+        (self.sources.stale_after_ms > 0)
+            .then(|| Duration::from_millis(self.sources.stale_after_ms))
     }
 
     /// `stats.interval_s` as a duration, `None` when disabled.
@@ -633,6 +728,11 @@ mod tests {
         assert!(invalid(|c| c.sources.discovery_interval_ms = 0)
             .starts_with("sources.discovery_interval_ms"));
         assert!(invalid(|c| c.sources.max_sources = 0).starts_with("sources.max_sources"));
+        assert!(invalid(|c| c.sources.stale_after_ms = 5).starts_with("sources.stale_after_ms"));
+        assert!(invalid(|c| c.ipc.max_subscribers = 0).starts_with("ipc.max_subscribers"));
+        assert!(invalid(|c| c.ipc.max_publishers = 5000).starts_with("ipc.max_publishers"));
+        assert!(invalid(|c| c.ipc.max_nodes = 0).starts_with("ipc.max_nodes"));
+        assert!(invalid(|c| c.ipc.subscriber_buffer = 0).starts_with("ipc.subscriber_buffer"));
         assert!(invalid(|c| {
             c.sources.max_sources = 1;
             c.sources.static_sources = vec!["a".into(), "b".into()];
@@ -684,6 +784,36 @@ mod tests {
         assert_eq!(c.zenoh.mode, "client");
         assert_eq!(c.zenoh.listen, vec!["tcp/127.0.0.1:0"]);
         assert_eq!(c.zenoh.connect, vec!["tcp/127.0.0.1:7448"]);
+    }
+
+    #[test]
+    fn ipc_limits_reach_the_client_settings() {
+        let c = Config::from_cli(&cli(&[
+            "--max-subscribers",
+            "12",
+            "--max-publishers",
+            "3",
+            "--max-nodes",
+            "20",
+            "--subscriber-buffer",
+            "64",
+            "--stale-after-ms",
+            "0",
+        ]))
+        .unwrap();
+        let s = *c.ipc_config().unwrap().settings();
+        assert_eq!(s, ServiceSettings::with_limits(3, 12, 20, 64));
+        assert_eq!((s.max_notifiers, s.max_listeners), (3, 12));
+        assert_eq!(c.stale_after(), None);
+        assert_eq!(
+            *Config::default().ipc_config().unwrap().settings(),
+            ghnet_client::SERVICE_SETTINGS,
+            "defaults are the client's"
+        );
+        assert_eq!(
+            Config::default().stale_after(),
+            Some(Duration::from_millis(2500))
+        );
     }
 
     #[test]

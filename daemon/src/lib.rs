@@ -8,6 +8,9 @@
 //!   name the key.
 //! - [`answer`] — per-sample logic without IPC: input checks, sequence and timestamp
 //!   bookkeeping ([`Counters`]), the model call, mapping to the wire status.
+//! - `lock` (private) — one ghnetd per service prefix and iceoryx2 namespace: an
+//!   exclusive lock file holding the pid, released by the kernel when its holder
+//!   dies (so `kill -9` leaves nothing to clean up).
 //! - `output` (private) — `HeadingOutput`, one destination of a source's answers:
 //!   the iceoryx2 heading service, and the Zenoh publisher.
 //! - `remote` (private) — the Zenoh session: heading publishers (congestion control
@@ -26,7 +29,12 @@
 //! [`HeadingEstimate`](ghnet_client::HeadingEstimate) on `<prefix>/<source>/heading`,
 //! invalid ones with status `InvalidInput` (never dropped silently). Sources come from
 //! `sources.static` and, with discovery on, from any velocity service that gets a
-//! publisher; a discovered source whose publishers are all gone is dropped. The
+//! publisher; a discovered source whose publishers are all gone is dropped. A source
+//! silent for longer than `sources.stale_after_ms` (default 2500) gets ONE extra
+//! message with status `Stale` (the last sample's sequence number and timestamp,
+//! heading NaN), which is not an answer to a sample; when samples come again it is
+//! served as before. A second ghnetd for the same service prefix in the same
+//! iceoryx2 namespace exits with an error naming the first one's pid. The
 //! per-sample path allocates nothing of its own: ports and model scratch are made
 //! once per source / once per daemon (`tests/no_alloc.rs` counts). iceoryx2 0.10
 //! itself allocates one small object per loaned sample and a short list per WaitSet
@@ -65,6 +73,7 @@ use serde::Serialize;
 
 pub mod answer;
 pub mod config;
+mod lock;
 mod output;
 mod remote;
 mod serve;
@@ -123,8 +132,10 @@ impl Stats {
 /// Must run on one thread for its whole life (iceoryx2 `ipc::Service` ports are
 /// `!Send`). Errors: invalid config, model that cannot be loaded, iceoryx2 node or a
 /// static source's services that cannot be opened (e.g. created by a client with
-/// smaller limits, or another iceoryx2 version). A discovered source that cannot be
-/// opened is logged and skipped instead.
+/// smaller limits, or another iceoryx2 version), or another ghnetd already serving
+/// the same service prefix (the message names its pid). A discovered source that
+/// cannot be opened (e.g. all its subscriber slots in use) is logged and skipped
+/// instead.
 pub fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stats> {
     config.validate()?;
     serve::run(config, shutdown)

@@ -39,6 +39,16 @@ fn main() -> ExitCode {
         print!("{}", config.to_toml());
         return ExitCode::SUCCESS;
     }
+    // Owner-only for everything created from here on: the lock file, the iceoryx2
+    // root directory if it does not exist yet, and the initial mode of iceoryx2's
+    // files. iceoryx2 0.10 already gives its shared memory, records and sockets
+    // owner-only modes, but creates some directories group/other-readable
+    // (client/README.md, "Permissions"). Only a process of the same user can then
+    // open ghnet's services, which iceoryx2's owner-only shared memory requires anyway.
+    // SAFETY: umask(2) cannot fail and touches no memory.
+    unsafe {
+        libc::umask(0o077);
+    }
 
     // Logs go to stderr (stdout stays clean for --print-config and pipes).
     tracing_subscriber::fmt()

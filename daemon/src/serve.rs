@@ -23,7 +23,7 @@ use ghnet_client::{
 use ghnet_models::{Model, Prediction, Predictor};
 use tracing::{debug, info, warn};
 
-use crate::answer::{Counters, Limits, ModelTag, Tracker};
+use crate::answer::{stale_message, Counters, Limits, ModelTag, Tracker};
 use crate::config::Config;
 use crate::output::HeadingOutput;
 use crate::remote::{LatencyRing, ZenohSide};
@@ -49,18 +49,36 @@ struct Ports {
 /// Everything that changes while serving a source.
 struct State {
     tracker: Tracker,
-    /// The last answer and recent processing times, for the Zenoh stats queryable.
+    /// The last answer and recent processing times, for the Zenoh stats queryable
+    /// (`last` is also what a `Stale` message echoes).
     last: Option<HeadingEstimate>,
     latency: LatencyRing,
+    /// Silence watch, kept by housekeeping only (the per-sample path stays as it
+    /// is): `received` as seen at the last pass, when it last changed, and whether
+    /// the current silence has had its one `Stale` message.
+    seen_received: u64,
+    last_activity: Instant,
+    stale_sent: bool,
 }
 
 impl State {
     fn new(tracker: Tracker) -> Self {
         Self {
+            seen_received: tracker.counters.received,
             tracker,
             last: None,
             latency: LatencyRing::new(),
+            last_activity: Instant::now(),
+            stale_sent: false,
         }
+    }
+
+    /// A source that answered something and has not had its Stale message for the
+    /// current silence yet. A discovered source whose publishers are gone is kept
+    /// until then, so consumers of a crashed source learn it (a source that never
+    /// sent anything has nothing to be stale about).
+    fn stale_pending(&self, stale_after: Option<Duration>) -> bool {
+        stale_after.is_some() && self.last.is_some() && !self.stale_sent
     }
 }
 
@@ -142,6 +160,13 @@ struct Daemon {
 pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stats> {
     let ipc = config.ipc_config()?;
     let iox_config = ipc.iceoryx2_config();
+    // Before anything else touches the services: a second daemon on the same prefix
+    // would answer every sample twice.
+    let lock = crate::lock::acquire(
+        std::path::Path::new(&iox_config.global.root_path().to_string()),
+        &iox_config.global.prefix.to_string(),
+        &config.ipc.service_prefix,
+    )?;
     // Display only, not the source chain: ModelError's message already quotes its
     // cause, and `{:#}` would print it twice.
     let model = Arc::new(
@@ -171,6 +196,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<ipc::Service>()
         .context("cannot create the iceoryx2 node (check permissions of /dev/shm and the iceoryx2 root path)")?;
+    restrict_global_segment(&iox_config);
     // Node creation already cleans up after dead nodes (iceoryx2 default); this
     // makes it explicit and visible after a kill -9.
     let cleanup = node.try_cleanup_dead_nodes();
@@ -189,6 +215,8 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         sources = ?config.sources.static_sources,
         discovery = config.sources.discovery,
         discovery_interval_ms = config.sources.discovery_interval_ms,
+        stale_after_ms = config.sources.stale_after_ms,
+        lock = %lock.path().display(),
         "ghnetd starting"
     );
 
@@ -275,7 +303,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
                     break 'outer;
                 }
                 if tick_due {
-                    let changes = d.housekeeping(&ports, &states);
+                    let changes = d.housekeeping(&ports, &mut states);
                     if !changes.is_empty() {
                         break changes;
                     }
@@ -311,6 +339,28 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         "ghnetd stopped"
     );
     Ok(stats)
+}
+
+/// iceoryx2 0.10 creates its per-prefix management segment
+/// (`/dev/shm/<global prefix>…global_mgmt`) with mode 0666, unaffected by the umask;
+/// everything else it creates is owner-only or below the (owner-only) root path.
+/// Narrow it to the owner when this process owns it; failures only cost the
+/// hardening, so they are logged, not fatal.
+fn restrict_global_segment(iox: &ghnet_client::iceoryx2::config::Config) {
+    use std::os::unix::fs::PermissionsExt;
+    let prefix = iox.global.prefix.to_string();
+    let Ok(entries) = std::fs::read_dir("/dev/shm") else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.starts_with(&prefix) && name.ends_with("global_mgmt") {
+            let perms = std::fs::Permissions::from_mode(0o600);
+            if let Err(err) = std::fs::set_permissions(e.path(), perms) {
+                debug!(file = %e.path().display(), error = %err, "cannot restrict iceoryx2 management segment");
+            }
+        }
+    }
 }
 
 /// Drains one source: consume the wake-up notifications first (or the WaitSet fires
@@ -466,10 +516,11 @@ impl Daemon {
         states.push(State::new(Tracker::resume(counters)));
     }
 
-    /// Runs every `discovery_interval_ms`: cleans up after dead processes, finds
-    /// sources whose publishers are gone, discovers new ones, logs stats when due.
-    /// Reads only; the caller applies the changes outside the WaitSet scope.
-    fn housekeeping(&mut self, ports: &[Ports], states: &[State]) -> Changes {
+    /// Runs every `discovery_interval_ms`: cleans up after dead processes, watches
+    /// for silent sources (one `Stale` message each), finds sources whose publishers
+    /// are gone, discovers new ones, logs stats when due. Changes no ports; the caller
+    /// applies the changes outside the WaitSet scope.
+    fn housekeeping(&mut self, ports: &[Ports], states: &mut [State]) -> Changes {
         let mut changes = Changes::default();
 
         // A publisher killed with -9 stays registered until its node is cleaned up;
@@ -482,8 +533,11 @@ impl Daemon {
             );
         }
 
-        for (i, p) in ports.iter().enumerate() {
-            if !p.is_static && p.velocity.publisher_count() == 0 {
+        let now = Instant::now();
+        let stale_after = self.config.stale_after();
+        for (i, (p, s)) in ports.iter().zip(states.iter_mut()).enumerate() {
+            self.watch_silence(p, s, now);
+            if !p.is_static && p.velocity.publisher_count() == 0 && !s.stale_pending(stale_after) {
                 changes.remove.push(i);
             }
         }
@@ -533,6 +587,49 @@ impl Daemon {
         changes
     }
 
+    /// Notices samples since the last pass ("served again" after a Stale message), or
+    /// a silence longer than `sources.stale_after_ms`: then publishes ONE `Stale`
+    /// message on every output of the source, logs and counts it. The silence is
+    /// measured from the pass that last saw a sample, so the message comes between
+    /// `stale_after_ms` and that plus two `discovery_interval_ms` after the last sample.
+    fn watch_silence(&self, p: &Ports, s: &mut State, now: Instant) {
+        let received = s.tracker.counters.received;
+        if received != s.seen_received {
+            s.seen_received = received;
+            s.last_activity = now;
+            if s.stale_sent {
+                s.stale_sent = false;
+                info!(source = %p.name, "served again: samples arrive after the Stale message");
+            }
+            return;
+        }
+        let (Some(after), Some(last)) = (self.config.stale_after(), s.last) else {
+            return;
+        };
+        let silent = now.duration_since(s.last_activity);
+        if s.stale_sent || silent <= after {
+            return;
+        }
+        s.stale_sent = true;
+        s.tracker.counters.stale += 1;
+        let msg = stale_message(&last);
+        for out in &p.outputs {
+            if let Err(e) = out.publish(&msg).and_then(|()| out.flush()) {
+                warn!(source = %p.name, output = out.kind(), error = %e, "cannot publish the Stale message");
+            }
+        }
+        warn!(
+            source = %p.name,
+            last_seq = last.seq,
+            silent_ms = silent.as_millis() as u64,
+            publishers = p.velocity.publisher_count(),
+            "source stale: no sample for longer than sources.stale_after_ms; published one Stale heading"
+        );
+        if let Some(z) = &self.zenoh {
+            z.refresh(&p.name, &s.tracker.counters, s.last, &s.latency);
+        }
+    }
+
     fn apply(&mut self, changes: Changes, ports: &mut Vec<Ports>, states: &mut Vec<State>) {
         // Highest index first so swap_remove does not move an index still to come.
         let mut remove = changes.remove;
@@ -546,6 +643,7 @@ impl Daemon {
                 received = c.received,
                 answered = c.answered,
                 invalid = c.invalid,
+                stale = c.stale,
                 "source removed: no publishers left"
             );
             self.retired.entry(p.name.clone()).or_default().add(&c);
@@ -600,6 +698,7 @@ impl Daemon {
                 duplicates = c.duplicates,
                 backwards = c.backwards,
                 send_errors = c.send_errors,
+                stale = c.stale,
                 publishers = p.velocity.publisher_count(),
                 "stats"
             );

@@ -1,11 +1,17 @@
-//! `kill -9` of the daemon or of a publisher needs no manual cleanup.
+//! `kill -9` of the daemon or of a publisher needs no manual cleanup: the dead
+//! process's iceoryx2 node and shared memory are reclaimed, the survivors go on.
 
-use ghnet_client::{HeadingSubscriber, VelocityPublisher};
-use ghnet_tests::{wait_until, ChildPublisher, Daemon, Namespace, WATCHDOG};
+use std::collections::BTreeSet;
+
+use ghnet_client::{HeadingStatus, HeadingSubscriber, VelocityPublisher};
+use ghnet_tests::{
+    list_nodes, recv_answer, wait_until, ChildPublisher, Daemon, Namespace, WATCHDOG,
+};
 
 use crate::TEST_PUBLISHER;
 
-/// Receives until an answer with `seq >= min_seq` arrives; returns its seq.
+/// Receives until an answer (not a `Stale` message) with `seq >= min_seq` arrives;
+/// returns its seq.
 fn answer_at_least(headings: &HeadingSubscriber, min_seq: u64) -> u64 {
     let t0 = std::time::Instant::now();
     loop {
@@ -13,12 +19,22 @@ fn answer_at_least(headings: &HeadingSubscriber, min_seq: u64) -> u64 {
             t0.elapsed() < WATCHDOG,
             "watchdog: no answer with seq >= {min_seq}"
         );
-        if let Some(h) = headings.recv_timeout(WATCHDOG).unwrap() {
+        if let Some(h) = recv_answer(headings, WATCHDOG) {
             if h.seq >= min_seq {
                 return h.seq;
             }
         }
     }
+}
+
+/// Names of the namespace's files in `/dev/shm`.
+fn shm_files(ns: &Namespace) -> BTreeSet<String> {
+    std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(ns.global_prefix()))
+        .collect()
 }
 
 #[test]
@@ -30,7 +46,20 @@ fn daemon_kill9_while_publishing_then_restart_resumes() {
 
     let first = Daemon::start(&ns, &[]);
     let seen = answer_at_least(&headings, 0);
+    let (alive, _) = list_nodes(&ns);
+    let daemon_node = alive
+        .iter()
+        .find(|n| n.ends_with(" ghnetd"))
+        .unwrap_or_else(|| panic!("no ghnetd node in {alive:?}"))
+        .clone();
+    let shm_before = shm_files(&ns);
     first.kill9();
+    let (_, dead) = list_nodes(&ns);
+    assert_eq!(
+        dead,
+        vec![daemon_node.clone()],
+        "the killed daemon is a dead node"
+    );
     // The publisher keeps publishing into the dead daemon's buffer meanwhile.
     while let Some(h) = headings
         .recv_timeout(std::time::Duration::from_millis(100))
@@ -43,10 +72,25 @@ fn daemon_kill9_while_publishing_then_restart_resumes() {
     let second = Daemon::start(&ns, &[]);
     let resumed = answer_at_least(&headings, seen + 1);
     eprintln!("answered seq {seen} before kill -9, {resumed} after restart");
-    // Only the new daemon's heading publisher is left on the service.
+    // Only the new daemon's heading publisher is left on the service, the dead node
+    // is gone from the node list, and so is its shared memory.
     wait_until("dead daemon's publisher cleaned up", || {
         headings.publisher_count() == 1
     });
+    let (alive, dead) = list_nodes(&ns);
+    assert!(dead.is_empty(), "dead nodes left: {dead:?}");
+    assert!(!alive.contains(&daemon_node), "{alive:?}");
+    let shm_after = shm_files(&ns);
+    let leftover: Vec<_> = shm_before
+        .iter()
+        .filter(|f| f.contains("_publisher_data") || f.contains("_node"))
+        .filter(|f| shm_after.contains(*f))
+        .collect();
+    eprintln!(
+        "/dev/shm files of the namespace: {} before kill -9, {} after restart; of the dead daemon's data segments left: {leftover:?}",
+        shm_before.len(),
+        shm_after.len()
+    );
     answer_at_least(&headings, resumed + 1);
     assert!(publisher.is_running());
 
@@ -60,13 +104,28 @@ fn publisher_kill9_daemon_goes_on_and_a_new_publisher_is_served() {
     let ipc = ns.ipc();
     let daemon = Daemon::start(&ns, &[]);
     let headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
+    let other_headings = HeadingSubscriber::new(&ipc, "other").unwrap();
+    let _other = ChildPublisher::spawn(TEST_PUBLISHER, &ns, "other", 0, 100);
 
     let publisher = ChildPublisher::spawn(TEST_PUBLISHER, &ns, "veh", 0, 200);
-    answer_at_least(&headings, 0);
+    let last_before = answer_at_least(&headings, 0);
     daemon.wait_for_log("source added");
     publisher.kill9();
+    // The other source is served all along.
+    let mut other_seq = answer_at_least(&other_headings, 0);
+    // Consumers of the dead source learn it: one Stale message with the last
+    // sequence number answered, then the source is dropped.
+    let stale = loop {
+        let h = headings.recv_timeout(WATCHDOG).unwrap().expect("Stale");
+        if h.heading_status() == Some(HeadingStatus::Stale) {
+            break h;
+        }
+        assert!(h.seq >= last_before);
+    };
     daemon.wait_for_log("source removed"); // noticed the dead publisher
     assert!(daemon.is_running(), "ghnetd must survive a dead publisher");
+    other_seq = answer_at_least(&other_headings, other_seq + 1);
+    eprintln!("Stale for veh at seq {}; other at {other_seq}", stale.seq);
 
     // Same name, new process: rediscovered and served.
     let _again = ChildPublisher::spawn(TEST_PUBLISHER, &ns, "veh", 1 << 32, 200);

@@ -7,6 +7,7 @@ mod config;
 mod crash;
 mod discovery;
 mod echo;
+mod faults;
 mod invalid;
 mod netns;
 mod python;
@@ -16,3 +17,6 @@ mod zenoh_output;
 
 /// Path of the helper publisher binary of this package.
 pub const TEST_PUBLISHER: &str = env!("CARGO_BIN_EXE_ghnet-test-publisher");
+
+/// Path of the helper subscriber binary of this package.
+pub const TEST_SUBSCRIBER: &str = env!("CARGO_BIN_EXE_ghnet-test-subscriber");
