@@ -3,6 +3,7 @@
 //! `cargo test --workspace`), real iceoryx2 shared memory, each test in its own
 //! namespace. One binary, one module per topic.
 
+mod bad_input;
 mod config;
 mod crash;
 mod discovery;
@@ -11,6 +12,7 @@ mod invalid;
 mod netns;
 mod python;
 mod shutdown;
+mod zenoh_acl;
 mod zenoh_output;
 
 /// Path of the helper publisher binary of this package.
