@@ -12,8 +12,8 @@
 //! # Malformed input
 //!
 //! What is an error (the whole file stops, with a one-line message) and what is a row
-//! answered `invalid` (counted in [`InferSummary::invalid`], first one's line number in
-//! [`InferSummary::first_invalid_line`]) is decided here once:
+//! answered `invalid` (counted in [`InferSummary::invalid`], first one's row number in
+//! [`InferSummary::first_invalid_row`]) is decided here once:
 //!
 //! | input | result |
 //! |---|---|
@@ -64,9 +64,10 @@ pub struct InferSummary {
     pub rows: u64,
     /// Rows answered `invalid`.
     pub invalid: u64,
-    /// Line (1-based, the header is line 1) where the first `invalid` row starts, so
-    /// a user can look at it; `None` when every row was answered.
-    pub first_invalid_line: Option<u64>,
+    /// Data row (1-based, the header not counted, empty lines not counted) of the
+    /// first `invalid` row, so a user can find it; `None` when every row was answered.
+    /// A row number rather than a line: quoted fields may span lines.
+    pub first_invalid_row: Option<u64>,
 }
 
 /// Parse a velocity field: empty or unparsable gives NaN, which the predictor answers
@@ -159,8 +160,8 @@ pub fn run(
             summary.rows += 1;
             if p.status == Status::Invalid {
                 summary.invalid += 1;
-                if summary.first_invalid_line.is_none() {
-                    summary.first_invalid_line = rec.position().map(|pos| pos.line());
+                if summary.first_invalid_row.is_none() {
+                    summary.first_invalid_row = Some(summary.rows);
                 }
                 rec.push_field(b"");
                 rec.push_field(b"");
@@ -220,7 +221,7 @@ mod tests {
             InferSummary {
                 rows: 2,
                 invalid: 0,
-                first_invalid_line: None,
+                first_invalid_row: None,
             }
         );
     }
@@ -244,7 +245,7 @@ mod tests {
             InferSummary {
                 rows: 8,
                 invalid: 7,
-                first_invalid_line: Some(2),
+                first_invalid_row: Some(1),
             }
         );
     }
@@ -366,7 +367,7 @@ mod tests {
             ],
             "{out}"
         );
-        assert_eq!((s.rows, s.invalid, s.first_invalid_line), (10, 6, Some(3)));
+        assert_eq!((s.rows, s.invalid, s.first_invalid_row), (10, 6, Some(2)));
         // A short row keeps its own fields and gets the three new ones.
         assert!(out.contains("\n3,,,invalid\n"), "{out}");
         // Extra fields pass through in place.
@@ -405,7 +406,7 @@ mod tests {
         let mut out = Vec::new();
         let s = run(&mut predictor(), input.as_slice(), &mut out).unwrap();
         // The unterminated quote swallows the rest of the file into one field.
-        assert_eq!((s.rows, s.invalid, s.first_invalid_line), (4, 1, Some(2)));
+        assert_eq!((s.rows, s.invalid, s.first_invalid_row), (4, 1, Some(1)));
         assert!(
             out.windows(2).any(|w| w == b"\xc3\x28"),
             "bytes pass through"

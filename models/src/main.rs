@@ -226,8 +226,8 @@ fn run(cli: Cli) -> Result<()> {
             )
             .with_context(|| format!("{}", input.display()))?;
             let first = s
-                .first_invalid_line
-                .map(|l| format!(" (first at line {l})"))
+                .first_invalid_row
+                .map(|r| format!(" (first at row {r})"))
                 .unwrap_or_default();
             eprintln!(
                 "{} rows, {} invalid{first} -> {}",

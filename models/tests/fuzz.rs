@@ -77,7 +77,7 @@ proptest! {
         input.extend_from_slice(&body);
         let (out, s) = infer_bytes(&input).unwrap();
         prop_assert!(s.invalid <= s.rows);
-        prop_assert_eq!(s.first_invalid_line.is_some(), s.invalid > 0);
+        prop_assert_eq!(s.first_invalid_row.is_some(), s.invalid > 0);
         prop_assert!(out.starts_with(b"t,v_north,v_east,speed_acc,heading_deg,heading_std_deg,status\n"));
     }
 
@@ -242,7 +242,7 @@ proptest! {
 }
 
 /// The real `ghnet infer` on a malformed CSV: bad rows are answered `invalid` and
-/// counted on stderr with the first one's line, exit 0; a wrong header is a one-line
+/// counted on stderr with the first one's row, exit 0; a wrong header is a one-line
 /// error and a non-zero exit; no panic either way.
 #[test]
 fn ghnet_infer_binary_on_malformed_csv() {
@@ -268,7 +268,7 @@ fn ghnet_infer_binary_on_malformed_csv() {
     assert!(out.status.success(), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(
-        stderr.contains("6 rows, 4 invalid (first at line 4)"),
+        stderr.contains("6 rows, 4 invalid (first at row 2)"),
         "{stderr}"
     );
     let text = std::fs::read(&output).unwrap();

@@ -238,7 +238,7 @@ fn huge_values_are_invalid() {
             ]);
             v
         },
-        invalid(6),
+        invalid(7),
     );
 }
 

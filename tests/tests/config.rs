@@ -171,7 +171,13 @@ fn unreadable_config_path() {
 
 #[test]
 fn missing_model_file_named_in_the_config_file() {
-    let line = config_file_fails(b"[model]\nname = \"/nonexistent/m.safetensors\"\n");
+    // The model is loaded after the config is read, so the line names the key and the
+    // model path (not the config file).
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("ghnetd.toml");
+    std::fs::write(&file, b"[model]\nname = \"/nonexistent/m.safetensors\"\n").unwrap();
+    let line = fails_with_one_line(&["--config".into(), file.into()]);
+    assert!(line.starts_with("error: model.name"), "{line}");
     assert!(line.contains("/nonexistent/m.safetensors"), "{line}");
 }
 
