@@ -564,7 +564,8 @@ fn undecodable_zenoh_payloads_are_errors_and_the_subscriber_goes_on() {
         .port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let config =
-        ghnet_client::peer_config(&[endpoint.clone()], &[daemon.zenoh_endpoint()]).unwrap();
+        ghnet_client::peer_config(std::slice::from_ref(&endpoint), &[daemon.zenoh_endpoint()])
+            .unwrap();
     let consumer = ghnet_client::zenoh::open(config).wait().unwrap();
     let sub = ZenohHeadingSubscriber::new(&consumer, &ipc, source).unwrap();
     zenoh_barrier(&consumer, &ipc);
