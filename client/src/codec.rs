@@ -138,6 +138,17 @@ mod tests {
         assert_eq!(decode_zenoh(&long), Err(DecodeError::Length(65)));
     }
 
+    #[test]
+    fn huge_payload_is_a_length_error_without_decoding() {
+        let big = vec![0x5au8; 4 << 20];
+        assert_eq!(decode_zenoh(&big), Err(DecodeError::Length(4 << 20)));
+        // Every byte value in every position of a 64-byte payload decodes (no field has
+        // invalid bit patterns today), so the decoder's only error is the length.
+        for v in [0x00u8, 0x7f, 0x80, 0xff] {
+            assert!(decode_zenoh(&[v; 64]).is_ok(), "{v:#x}");
+        }
+    }
+
     proptest! {
         /// Arbitrary bytes never panic the decoder; 64 bytes always decode, to the
         /// same bytes.

@@ -35,16 +35,17 @@ pub struct Counters {
 }
 
 impl Counters {
-    /// Field-wise sum, for totals and for sources that come back.
+    /// Field-wise sum, for totals and for sources that come back. Saturating, because
+    /// `gaps` can be driven to `u64::MAX` by a single sample.
     pub fn add(&mut self, o: &Counters) {
-        self.received += o.received;
-        self.answered += o.answered;
-        self.invalid += o.invalid;
-        self.gaps += o.gaps;
-        self.duplicates += o.duplicates;
-        self.backwards += o.backwards;
-        self.send_errors += o.send_errors;
-        self.stale += o.stale;
+        self.received = self.received.saturating_add(o.received);
+        self.answered = self.answered.saturating_add(o.answered);
+        self.invalid = self.invalid.saturating_add(o.invalid);
+        self.gaps = self.gaps.saturating_add(o.gaps);
+        self.duplicates = self.duplicates.saturating_add(o.duplicates);
+        self.backwards = self.backwards.saturating_add(o.backwards);
+        self.send_errors = self.send_errors.saturating_add(o.send_errors);
+        self.stale = self.stale.saturating_add(o.stale);
     }
 }
 
@@ -127,7 +128,9 @@ impl Tracker {
         let mut backwards = false;
         if let Some((last_seq, last_ts)) = self.last {
             if s.seq > last_seq {
-                self.counters.gaps += s.seq - last_seq - 1;
+                // Saturating: a publisher may jump to u64::MAX and back, and a debug
+                // build must not panic on what a remote process sends.
+                self.counters.gaps = self.counters.gaps.saturating_add(s.seq - last_seq - 1);
             } else {
                 self.counters.duplicates += 1;
             }

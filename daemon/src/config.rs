@@ -357,14 +357,38 @@ pub struct Cli {
 
 impl Config {
     /// Parses TOML text (unknown keys are errors).
+    ///
+    /// Errors are one line that names the place: `line 2 ([sources] discovery =
+    /// "yes"): invalid type: string "yes", expected a boolean`. toml's own message
+    /// says what is wrong but not which key (a wrong type points at the value), and its
+    /// `Display` spans several lines, so the line's section and text are quoted here.
     pub fn from_toml(text: &str) -> anyhow::Result<Self> {
-        // toml's message spans several lines (it quotes the line); keep the first.
         toml::from_str(text).map_err(|e| {
-            let msg = e.message().to_owned();
-            match e.span() {
-                Some(span) => {
-                    let line = text[..span.start].matches('\n').count() + 1;
-                    anyhow::anyhow!("line {line}: {msg}")
+            let msg = e.message().replace(['\n', '\r'], " ");
+            // `get`, not indexing: a span is a byte range and must never panic here.
+            match e.span().and_then(|span| text.get(..span.start)) {
+                Some(before) => {
+                    let line = before.matches('\n').count() + 1;
+                    // The lines before this one (the span may start mid-line).
+                    let above = &before[..before.rfind('\n').unwrap_or(0)];
+                    let section = above
+                        .lines()
+                        .rev()
+                        .map(str::trim)
+                        .find(|l| l.starts_with('['));
+                    let quoted: String = text
+                        .lines()
+                        .nth(line - 1)
+                        .unwrap_or_default()
+                        .trim()
+                        .chars()
+                        .take(80)
+                        .collect();
+                    let place = match section {
+                        Some(s) if !quoted.starts_with('[') => format!("{s} {quoted}"),
+                        _ => quoted,
+                    };
+                    anyhow::anyhow!("line {line} ({place}): {msg}")
                 }
                 None => anyhow::anyhow!(msg),
             }

@@ -8,6 +8,27 @@
 //! empty, unparsable, NaN, infinite or absurd (over the policy's max speed) gets status
 //! `invalid` and empty heading fields; it never stops the file. Rows are read, answered
 //! through the batch path and written in blocks, so memory does not grow with the file.
+//!
+//! # Malformed input
+//!
+//! What is an error (the whole file stops, with a one-line message) and what is a row
+//! answered `invalid` (counted in [`InferSummary::invalid`], first one's row number in
+//! [`InferSummary::first_invalid_row`]) is decided here once:
+//!
+//! | input | result |
+//! |---|---|
+//! | no header, or a header without `v_north` / `v_east` (also an empty file) | error [`InferError::MissingColumn`] naming the column |
+//! | header already has `heading_deg`, `heading_std_deg` or `status` | error [`InferError::DuplicateColumn`] |
+//! | header names with spaces around them, a UTF-8 byte-order mark, CRLF line ends | accepted (trimmed, stripped) |
+//! | empty lines | skipped (not rows, not counted; CSV has no empty records) |
+//! | a row with fewer fields than the header (velocity column missing) | `invalid`, extra columns pass through as they are |
+//! | a row with more fields than the header | passes through, answered normally |
+//! | non-numeric, empty, `NaN`, `inf`, non-UTF-8 velocity fields | `invalid` |
+//! | a velocity over the policy's `max_speed` (100 m/s) | `invalid` |
+//! | `speed_acc` non-numeric, empty, NaN, infinite or negative | unknown accuracy, answered with the network's σ (logs often write -1 for "not available"; the live wire has NaN for that and ghnetd rejects a negative one) |
+//! | a huge line (megabytes in one field) | answered like any row (`invalid` if it is a velocity field); memory grows with the longest row only |
+//! | an unterminated quote | the field runs to the end of the file: one more (likely `invalid`) row |
+//! | a read or write failure | error [`InferError::Io`] / [`InferError::Csv`] |
 
 use std::io::{Read, Write};
 
@@ -22,8 +43,8 @@ pub const OUTPUT_COLUMNS: [&str; 3] = ["heading_deg", "heading_std_deg", "status
 /// Why a file could not be processed (as opposed to a row, which is answered `invalid`).
 #[derive(Debug, thiserror::Error)]
 pub enum InferError {
-    /// The header lacks a required column.
-    #[error("input has no `{0}` column (need a header with v_north and v_east, in m/s)")]
+    /// The header (line 1) lacks a required column.
+    #[error("input has no `{0}` column in its header (line 1; need a header with v_north and v_east, in m/s)")]
     MissingColumn(&'static str),
     /// The header already has a column this command would add.
     #[error("input already has a `{0}` column; rename it or drop it first")]
@@ -43,6 +64,10 @@ pub struct InferSummary {
     pub rows: u64,
     /// Rows answered `invalid`.
     pub invalid: u64,
+    /// Data row (1-based, the header not counted, empty lines not counted) of the
+    /// first `invalid` row, so a user can find it; `None` when every row was answered.
+    /// A row number rather than a line: quoted fields may span lines.
+    pub first_invalid_row: Option<u64>,
 }
 
 /// Parse a velocity field: empty or unparsable gives NaN, which the predictor answers
@@ -83,7 +108,12 @@ pub fn run(
         .from_reader(input);
     let mut wtr = csv::WriterBuilder::new().flexible(true).from_writer(output);
     let header = rdr.byte_headers()?.clone();
-    let find = |name: &'static str| header.iter().position(|h| h == name.as_bytes());
+    // Spaces around a name (`v_north, v_east`) are a common hand-edit; accept them.
+    let find = |name: &'static str| {
+        header
+            .iter()
+            .position(|h| h.trim_ascii() == name.as_bytes())
+    };
     let i_n = find("v_north").ok_or(InferError::MissingColumn("v_north"))?;
     let i_e = find("v_east").ok_or(InferError::MissingColumn("v_east"))?;
     let i_acc = find("speed_acc");
@@ -130,6 +160,9 @@ pub fn run(
             summary.rows += 1;
             if p.status == Status::Invalid {
                 summary.invalid += 1;
+                if summary.first_invalid_row.is_none() {
+                    summary.first_invalid_row = Some(summary.rows);
+                }
                 rec.push_field(b"");
                 rec.push_field(b"");
             } else {
@@ -187,7 +220,8 @@ mod tests {
             s,
             InferSummary {
                 rows: 2,
-                invalid: 0
+                invalid: 0,
+                first_invalid_row: None,
             }
         );
     }
@@ -210,7 +244,8 @@ mod tests {
             s,
             InferSummary {
                 rows: 8,
-                invalid: 7
+                invalid: 7,
+                first_invalid_row: Some(1),
             }
         );
     }
@@ -257,6 +292,141 @@ mod tests {
         let (out, s) = infer("v_north,v_east\n").unwrap();
         assert_eq!(out.lines().count(), 1);
         assert_eq!(s.rows, 0);
+    }
+
+    /// Status column of each output row, `low_speed` shown as `ok` (answered with a
+    /// heading either way; which one depends on the model's σ at that speed).
+    fn statuses(out: &str) -> Vec<String> {
+        out.lines()
+            .skip(1)
+            .map(|l| match l.rsplit(',').next().unwrap() {
+                "low_speed" => "ok".to_owned(),
+                other => other.to_owned(),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn wrong_header_is_an_error_naming_the_column_and_line_1() {
+        for input in [
+            "1.0,2.0\n3.0,4.0\n",
+            "",
+            "\n\n",
+            "vn,ve\n1,2\n",
+            "V_NORTH,V_EAST\n1,2\n",
+        ] {
+            let e = infer(input).unwrap_err().to_string();
+            assert!(
+                e.contains("`v_north`") && e.contains("line 1"),
+                "{input:?}: {e}"
+            );
+            assert!(!e.contains('\n'), "one line: {e}");
+        }
+        let e = infer("v_north\n1\n").unwrap_err().to_string();
+        assert!(e.contains("`v_east`"), "{e}");
+    }
+
+    #[test]
+    fn header_spaces_bom_and_crlf_are_accepted() {
+        let (out, s) = infer("\u{feff}t , v_north ,\tv_east\r\n1,3,4\r\n2,0,-2\r\n").unwrap();
+        assert_eq!(statuses(&out), ["ok", "ok"], "{out}");
+        assert_eq!((s.rows, s.invalid), (2, 0));
+        // Header names pass through as written (only the match is trimmed).
+        assert!(
+            out.starts_with("t , v_north ,\tv_east,heading_deg"),
+            "{out}"
+        );
+    }
+
+    #[test]
+    fn empty_lines_are_skipped_not_counted() {
+        let (out, s) = infer("v_north,v_east\n\n1,1\n\n\r\n\n2,2\n\n").unwrap();
+        assert_eq!(s.rows, 2, "{out}");
+        assert_eq!(s.invalid, 0);
+    }
+
+    #[test]
+    fn short_long_and_non_numeric_rows() {
+        let input = "t,v_north,v_east\n\
+                     1,1,1\n\
+                     2,1\n\
+                     3\n\
+                     4,1,1,extra,fields\n\
+                     5,north,1\n\
+                     6,1,0x10\n\
+                     7,\"1\",\"1\"\n\
+                     8, 1 , 1 \n\
+                     9,1e400,1\n\
+                     10,1;5,1\n";
+        let (out, s) = infer(input).unwrap();
+        assert_eq!(
+            statuses(&out),
+            [
+                "ok", "invalid", "invalid", "ok", "invalid", "invalid", "ok", "ok", "invalid",
+                "invalid"
+            ],
+            "{out}"
+        );
+        assert_eq!((s.rows, s.invalid, s.first_invalid_row), (10, 6, Some(2)));
+        // A short row keeps its own fields and gets the three new ones.
+        assert!(out.contains("\n3,,,invalid\n"), "{out}");
+        // Extra fields pass through in place.
+        assert!(out.contains("\n4,1,1,extra,fields,"), "{out}");
+    }
+
+    #[test]
+    fn nan_and_infinity_strings_are_invalid() {
+        let input =
+            "v_north,v_east\nNaN,1\nnan,1\n-NaN,1\ninf,1\n-inf,1\ninfinity,1\n1,+Infinity\n1,1\n";
+        let (out, s) = infer(input).unwrap();
+        assert_eq!((s.rows, s.invalid), (8, 7), "{out}");
+        assert_eq!(statuses(&out).last().unwrap(), "ok");
+    }
+
+    #[test]
+    fn huge_line_is_one_invalid_row_and_the_next_row_is_fine() {
+        let mut input = String::from("v_north,v_east,note\n");
+        input.push_str(&"9".repeat(2_000_000));
+        input.push_str(",1,");
+        input.push_str(&"x".repeat(1_000_000));
+        input.push_str("\n1,1,short\n");
+        let (out, s) = infer(&input).unwrap();
+        assert_eq!((s.rows, s.invalid), (2, 1));
+        assert!(out.contains("\n1,1,short,"), "the next row passes through");
+        assert_eq!(statuses(&out), ["invalid", "ok"]);
+    }
+
+    #[test]
+    fn non_utf8_and_quotes_never_stop_the_file() {
+        let mut input = b"v_north,v_east,note\n".to_vec();
+        input.extend_from_slice(b"\xff\xfe,1,a\n");
+        input.extend_from_slice(b"1,1,\xc3\x28\n"); // invalid UTF-8 passes through
+        input.extend_from_slice(b"1,1,\"multi\nline\"\n");
+        input.extend_from_slice(b"1,1,\"unterminated\n2,2,x\n");
+        let mut out = Vec::new();
+        let s = run(&mut predictor(), input.as_slice(), &mut out).unwrap();
+        // The unterminated quote swallows the rest of the file into one field.
+        assert_eq!((s.rows, s.invalid, s.first_invalid_row), (4, 1, Some(1)));
+        assert!(
+            out.windows(2).any(|w| w == b"\xc3\x28"),
+            "bytes pass through"
+        );
+    }
+
+    #[test]
+    fn bad_speed_accuracy_means_unknown() {
+        let (out, s) =
+            infer("v_north,v_east,speed_acc\n2,0,\n2,0,-1\n2,0,abc\n2,0,inf\n2,0,NaN\n").unwrap();
+        assert_eq!(s.invalid, 0, "{out}");
+        let std: Vec<&str> = out
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').nth(4).unwrap())
+            .collect();
+        assert!(
+            std.iter().all(|x| *x == std[0]),
+            "all the network's σ: {std:?}"
+        );
     }
 
     #[test]

@@ -282,8 +282,12 @@ fn run(cli: Cli) -> Result<()> {
                 BufWriter::with_capacity(1 << 16, out),
             )
             .with_context(|| format!("{}", input.display()))?;
+            let first = s
+                .first_invalid_row
+                .map(|r| format!(" (first at row {r})"))
+                .unwrap_or_default();
             eprintln!(
-                "{} rows, {} invalid -> {}",
+                "{} rows, {} invalid{first} -> {}",
                 s.rows,
                 s.invalid,
                 output.display()

@@ -201,6 +201,20 @@ pub fn from_bytes(bytes: &[u8]) -> Result<(ParamSet, ModelMeta), WeightsError> {
             reason: format!("`{}` is not implemented (only gelu_tanh)", meta.activation),
         });
     }
+    check_arch(&meta.architecture)?;
+    if !(meta.sigma_scale.is_finite() && meta.sigma_scale > 0.0) {
+        return Err(WeightsError::BadMetadata {
+            key: "sigma_scale".into(),
+            reason: format!("{} must be a positive number", meta.sigma_scale),
+        });
+    }
+    let k = meta.accuracy_sigma_scale;
+    if !(k.is_nan() || (k.is_finite() && k > 0.0)) {
+        return Err(WeightsError::BadMetadata {
+            key: "accuracy_sigma_scale".into(),
+            reason: format!("{k} must be null (unused) or a positive number"),
+        });
+    }
     if meta.architecture.output != meta.head.outputs() {
         return Err(WeightsError::BadMetadata {
             key: "architecture".into(),
@@ -254,6 +268,44 @@ pub fn from_bytes(bytes: &[u8]) -> Result<(ParamSet, ModelMeta), WeightsError> {
         }
     }
     Ok((params, meta))
+}
+
+/// Largest layer width a model file may declare. The shipped networks are at most 192
+/// wide; the bound keeps a hostile or corrupt `architecture` from making the loader
+/// allocate gigabytes (or overflow a size) before the tensors are even looked at.
+pub const MAX_LAYER_WIDTH: usize = 4096;
+
+/// Most layers (conv + fc) a model file may declare, for the same reason.
+pub const MAX_LAYERS: usize = 64;
+
+/// Checks what the inference code assumes of an architecture from a file: two inputs
+/// (v_N, v_E), at least one convolution, sizes in `1..=MAX_LAYER_WIDTH`, at most
+/// [`MAX_LAYERS`] layers. Without this a bad file would panic or abort at load or at
+/// the first prediction instead of being an error.
+fn check_arch(a: &Arch) -> Result<(), WeightsError> {
+    let bad = |reason: String| {
+        Err(WeightsError::BadMetadata {
+            key: "architecture".into(),
+            reason,
+        })
+    };
+    if a.input != 2 {
+        return bad(format!("input {} is not 2 (v_north, v_east)", a.input));
+    }
+    if a.conv.is_empty() {
+        return bad("no conv layer (the network needs at least one)".into());
+    }
+    if a.conv.len() + a.fc.len() > MAX_LAYERS {
+        return bad(format!(
+            "{} layers, more than {MAX_LAYERS}",
+            a.conv.len() + a.fc.len()
+        ));
+    }
+    let sizes = a.conv.iter().chain(&a.fc).chain(std::iter::once(&a.output));
+    if let Some(n) = sizes.copied().find(|n| !(1..=MAX_LAYER_WIDTH).contains(n)) {
+        return bad(format!("layer size {n} is outside 1..={MAX_LAYER_WIDTH}"));
+    }
+    Ok(())
 }
 
 fn parse_meta(md: &HashMap<String, String>) -> Result<ModelMeta, WeightsError> {

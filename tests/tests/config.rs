@@ -2,6 +2,7 @@
 //! iceoryx2 resource exists.
 
 use std::ffi::OsString;
+use std::path::PathBuf;
 
 use ghnet_tests::{run_ghnetd, Namespace};
 
@@ -94,4 +95,141 @@ fn missing_or_corrupt_model_file() {
     let line = fails_with_one_line(&["--model".into(), file.clone().into()]);
     assert!(line.starts_with("error: model.name"), "{line}");
     assert!(line.contains(&*file.to_string_lossy()), "{line}");
+}
+
+/// Writes `text` as a config file and runs ghnetd on it; returns the error line,
+/// which must name the file.
+fn config_file_fails(text: &[u8]) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("ghnetd.toml");
+    std::fs::write(&file, text).unwrap();
+    let line = fails_with_one_line(&["--config".into(), file.clone().into()]);
+    assert!(
+        line.contains(&*file.to_string_lossy()),
+        "names the file: {line}"
+    );
+    line
+}
+
+#[test]
+fn wrong_types_name_the_line_and_key() {
+    for (text, line_no, key) in [
+        ("[sources]\ndiscovery = \"yes\"\n", 2, "discovery"),
+        ("[sources]\nmax_sources = -3\n", 2, "max_sources"),
+        ("[sources]\nstatic = \"gnss0\"\n", 2, "static"),
+        ("\n[model]\nmax_speed = \"fast\"\n", 3, "max_speed"),
+        ("[stats]\ninterval_s = 1.5\n", 2, "interval_s"),
+        ("[zenoh]\nlisten = \"tcp/127.0.0.1:0\"\n", 2, "listen"),
+        ("[ipc]\nservice_prefix = 12\n", 2, "service_prefix"),
+        ("sources = 5\n", 1, "sources"),
+        ("[zenoh]\nenabled = 1\n", 2, "enabled"),
+    ] {
+        let line = config_file_fails(text.as_bytes());
+        assert!(
+            line.contains(&format!("line {line_no} ")),
+            "{text:?}: {line}"
+        );
+        assert!(line.contains(key), "{text:?} must name `{key}`: {line}");
+        assert!(line.contains("invalid"), "{text:?}: {line}");
+    }
+}
+
+#[test]
+fn unknown_keys_top_level_section_and_nested_are_named() {
+    for (text, key) in [
+        ("verbose = true\n", "verbose"),
+        ("[zenohh]\nenabled = false\n", "zenohh"),
+        ("[model]\nnmae = \"paper-s1\"\n", "nmae"),
+        ("[zenoh]\nenabled = true\n[zenoh.extra]\nx = 1\n", "extra"),
+    ] {
+        let line = config_file_fails(text.as_bytes());
+        assert!(line.contains(key), "{text:?} must name `{key}`: {line}");
+        assert!(line.contains("unknown field"), "{text:?}: {line}");
+    }
+}
+
+#[test]
+fn toml_syntax_errors_and_non_utf8_files() {
+    for text in [
+        &b"[sources\n"[..],
+        b"[sources]\nstatic = [\"a\"\n",
+        b"= 3\n",
+        b"\xff\xfe[sources]\n",
+    ] {
+        config_file_fails(text);
+    }
+}
+
+#[test]
+fn unreadable_config_path() {
+    let dir = tempfile::tempdir().unwrap();
+    // A directory where a file should be (root reads any mode, so no chmod test).
+    let line = fails_with_one_line(&["--config".into(), dir.path().into()]);
+    assert!(line.contains("cannot read config file"), "{line}");
+    assert!(line.contains(&*dir.path().to_string_lossy()), "{line}");
+}
+
+#[test]
+fn missing_model_file_named_in_the_config_file() {
+    // The model is loaded after the config is read, so the line names the key and the
+    // model path (not the config file).
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("ghnetd.toml");
+    std::fs::write(&file, b"[model]\nname = \"/nonexistent/m.safetensors\"\n").unwrap();
+    let line = fails_with_one_line(&["--config".into(), file.into()]);
+    assert!(line.starts_with("error: model.name"), "{line}");
+    assert!(line.contains("/nonexistent/m.safetensors"), "{line}");
+}
+
+/// Safetensors bytes of the test model with its weights replaced by `params`
+/// (metadata unchanged), written through the models crate's weights API.
+fn model_file(dir: &std::path::Path, params: &ghnet_models::params::ParamSet) -> PathBuf {
+    let meta = ghnet_tests::test_model().model.meta().clone();
+    let file = dir.join("model.safetensors");
+    ghnet_models::weights::write(&file, params, &meta).unwrap();
+    file
+}
+
+#[test]
+fn model_file_with_wrong_shapes_names_the_tensor() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = &ghnet_tests::test_model().model;
+    // One more output of the first convolution: conv1.* get 1 more row than the
+    // metadata's architecture says.
+    let mut arch = model.meta().architecture.clone();
+    arch.conv[0] += 1;
+    let file = model_file(dir.path(), &ghnet_models::params::ParamSet::zeros(&arch));
+    let line = fails_with_one_line(&["--model".into(), file.clone().into()]);
+    assert!(line.starts_with("error: model.name"), "{line}");
+    assert!(line.contains(&*file.to_string_lossy()), "{line}");
+    assert!(line.contains("tensor `conv1.weight` has shape"), "{line}");
+}
+
+#[test]
+fn model_file_with_non_finite_weights_names_the_tensor() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut params = ghnet_tests::test_model().model.params().clone();
+    let r = params.range(params.index_of("fc1.bias").unwrap());
+    params.data_mut()[r.start] = f32::NAN;
+    let file = model_file(dir.path(), &params);
+    let line = fails_with_one_line(&["--model".into(), file.into()]);
+    assert!(
+        line.contains("tensor `fc1.bias` contains non-finite"),
+        "{line}"
+    );
+}
+
+#[test]
+fn model_path_that_is_not_a_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("empty.safetensors");
+    std::fs::write(&empty, b"").unwrap();
+    let truncated = dir.path().join("truncated.safetensors");
+    let bytes = ghnet_tests::test_model().model.to_safetensors();
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    for path in [empty, truncated, dir.path().to_path_buf()] {
+        let line = fails_with_one_line(&["--model".into(), path.clone().into()]);
+        assert!(line.starts_with("error: model.name"), "{path:?}: {line}");
+        assert!(line.contains(&*path.to_string_lossy()), "{line}");
+    }
 }

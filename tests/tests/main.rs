@@ -3,6 +3,7 @@
 //! `cargo test --workspace`), real iceoryx2 shared memory, each test in its own
 //! namespace. One binary, one module per topic.
 
+mod bad_input;
 mod config;
 mod crash;
 mod discovery;
@@ -13,6 +14,7 @@ mod netns;
 mod python;
 mod shutdown;
 mod soak;
+mod zenoh_acl;
 mod zenoh_output;
 
 /// Path of the helper publisher binary of this package.
