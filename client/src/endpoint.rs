@@ -499,7 +499,8 @@ impl<T: Message> Receiver<T> {
             let seq = v.seq();
             if let Some(last) = self.last_seq.get() {
                 if seq > last {
-                    self.missed.set(self.missed.get() + (seq - last - 1));
+                    self.missed
+                        .set(self.missed.get().saturating_add(seq - last - 1));
                 }
             }
             self.last_seq.set(Some(seq));

@@ -193,7 +193,9 @@ pub struct ZenohSection {
     /// Zenoh gossip scouting (peers telling each other about peers). Off by default.
     pub gossip: bool,
     /// A standard Zenoh json5 config file for everything else (router connection,
-    /// TLS, access control). Unset: Zenoh's defaults under the keys above.
+    /// TLS, access control, transmit queue). Unset: Zenoh's defaults under the keys
+    /// above, except a deeper transmit queue (16 batches for data, 50 ms before a
+    /// heading is dropped) so that bursts of headings from many sources are not lost.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub config_file: Option<PathBuf>,
 }
@@ -223,7 +225,28 @@ impl ZenohSection {
         let mut c = match &self.config_file {
             Some(path) => zenoh::Config::from_file(path)
                 .map_err(|e| anyhow::anyhow!("zenoh.config_file {}: {e}", path.display()))?,
-            None => zenoh::Config::default(),
+            None => {
+                let mut c = zenoh::Config::default();
+                // ghnetd's transmit queue, unless a config file says otherwise. The
+                // heading publisher is `express` with congestion control *drop*, so
+                // every heading takes a batch of its own; Zenoh's default queue (2
+                // batches, drop after 1 ms) lost 18% of a burst of 100 headings on a
+                // loaded 2-core machine (tests/tests/soak.rs). 16 batches, and up to
+                // 50 ms for one to free before dropping: no loss there. A consumer
+                // that stops reading costs the loop at most one such wait: while the
+                // queue stays congested, Zenoh drops further headings without waiting.
+                for (key, value) in [
+                    ("transport/link/tx/queue/size/data", "16"),
+                    (
+                        "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
+                        "50000",
+                    ),
+                ] {
+                    c.insert_json5(key, value)
+                        .map_err(|e| anyhow::anyhow!("zenoh default {key}: {e}"))?;
+                }
+                c
+            }
         };
         let set = |c: &mut zenoh::Config, key: &str, what: &str, json: String| {
             c.insert_json5(key, &json)
@@ -793,6 +816,25 @@ mod tests {
             .get_json("listen/endpoints")
             .unwrap()
             .contains("tcp/127.0.0.1:7447"));
+        // ghnetd's deeper transmit queue without a file; a file's own values rule.
+        assert_eq!(
+            c.get_json("transport/link/tx/queue/size/data").unwrap(),
+            "16"
+        );
+        let wait = "transport/link/tx/queue/congestion_control/drop/wait_before_drop";
+        assert_eq!(c.get_json(wait).unwrap(), "50000");
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("z.json5");
+        std::fs::write(&file, "{ mode: \"peer\" }").unwrap();
+        let section = ZenohSection {
+            config_file: Some(file),
+            ..ZenohSection::default()
+        };
+        let zenoh_default = ghnet_client::zenoh::Config::default();
+        assert_eq!(
+            section.zenoh_config().unwrap().get_json(wait).unwrap(),
+            zenoh_default.get_json(wait).unwrap()
+        );
         let c = Config::from_cli(&cli(&[
             "--zenoh",
             "false",

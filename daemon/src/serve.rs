@@ -160,6 +160,14 @@ struct Daemon {
 pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stats> {
     let ipc = config.ipc_config()?;
     let iox_config = ipc.iceoryx2_config();
+    // The model first: a bad model file is a config error and must leave nothing
+    // behind (no lock file, no iceoryx2 root).
+    // Display only, not the source chain: ModelError's message already quotes its
+    // cause, and `{:#}` would print it twice.
+    let model = Arc::new(
+        Model::from_name_or_path(&config.model.name)
+            .map_err(|e| anyhow::anyhow!("model.name `{}`: {e}", config.model.name))?,
+    );
     // Before anything else touches the services: a second daemon on the same prefix
     // would answer every sample twice.
     let lock = crate::lock::acquire(
@@ -167,12 +175,6 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         &iox_config.global.prefix.to_string(),
         &config.ipc.service_prefix,
     )?;
-    // Display only, not the source chain: ModelError's message already quotes its
-    // cause, and `{:#}` would print it twice.
-    let model = Arc::new(
-        Model::from_name_or_path(&config.model.name)
-            .map_err(|e| anyhow::anyhow!("model.name `{}`: {e}", config.model.name))?,
-    );
     let tag = ModelTag {
         id: model.id(),
         name: HeadingEstimate::encode_model_name(model.name()),
