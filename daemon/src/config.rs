@@ -98,6 +98,8 @@ pub struct SourcesSection {
     /// drop it again when its last publisher is gone.
     pub discovery: bool,
     /// How often to look for new sources, gone publishers and dead processes (ms).
+    /// A pass lists the iceoryx2 services only when their directory changed (or
+    /// every 5 s), so a short interval costs next to nothing while idle.
     pub discovery_interval_ms: u64,
     /// Most sources served at once (static + discovered); more are logged and ignored.
     pub max_sources: usize,

@@ -155,6 +155,57 @@ struct Daemon {
     next_stats: Option<Instant>,
     /// The Zenoh session (output, presence, queryables) when `zenoh.enabled`.
     zenoh: Option<ZenohSide>,
+    /// Whether a discovery pass has anything new to list.
+    services: ServiceDirWatch,
+}
+
+/// Tells a discovery pass whether listing the iceoryx2 services can find anything.
+///
+/// Listing opens and parses the static config of every service under the root, which
+/// made discovery the whole of ghnetd's idle CPU (about 3% of a core with 10 sources
+/// at 4 passes a second). A new service always creates a file in the services
+/// directory, which changes the directory's mtime, so a pass lists only when:
+/// - the mtime changed since the last listing (a service appeared or went away);
+/// - the mtime is younger than [`Self::TRUST_AFTER`]: file times are coarse (one
+///   kernel tick), so a file created in the same tick just after a listing would not
+///   change it;
+/// - [`Self::FULL_LIST_EVERY`] passed: a publisher that comes back to a service that
+///   still exists (held open by another process) creates no file.
+struct ServiceDirWatch {
+    dir: std::path::PathBuf,
+    mtime: Option<std::time::SystemTime>,
+    listed_at: Option<Instant>,
+}
+
+impl ServiceDirWatch {
+    const TRUST_AFTER: Duration = Duration::from_millis(100);
+    const FULL_LIST_EVERY: Duration = Duration::from_secs(5);
+
+    fn new(iox_config: &ghnet_client::iceoryx2::config::Config) -> Self {
+        Self {
+            dir: iox_config.global.service_dir().to_string().into(),
+            mtime: None,
+            listed_at: None,
+        }
+    }
+
+    /// True when a listing is due; then records the state it saw.
+    fn should_list(&mut self, now: Instant) -> bool {
+        let mtime = std::fs::metadata(&self.dir).and_then(|m| m.modified()).ok();
+        let young = mtime
+            .and_then(|m| std::time::SystemTime::now().duration_since(m).ok())
+            .is_none_or(|age| age < Self::TRUST_AFTER);
+        let due = self
+            .listed_at
+            .is_none_or(|at| now.duration_since(at) >= Self::FULL_LIST_EVERY);
+        if mtime.is_none() || mtime != self.mtime || young || due {
+            self.mtime = mtime;
+            self.listed_at = Some(now);
+            true
+        } else {
+            false
+        }
+    }
 }
 
 pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stats> {
@@ -222,6 +273,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         "ghnetd starting"
     );
 
+    let services = ServiceDirWatch::new(&iox_config);
     let mut d = Daemon {
         limits: Limits {
             max_speed: config.model.max_speed as f32,
@@ -240,6 +292,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         added: 0,
         removed: 0,
         zenoh,
+        services,
     };
 
     let mut ports: Vec<Ports> = Vec::new();
@@ -544,7 +597,7 @@ impl Daemon {
             }
         }
 
-        if self.config.sources.discovery {
+        if self.config.sources.discovery && self.services.should_list(now) {
             let mut found = BTreeSet::new();
             let ipc = &self.ipc;
             let listed = ipc::Service::list(&self.iox_config, |details| {
@@ -705,5 +758,43 @@ impl Daemon {
                 "stats"
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn service_dir_watch_lists_on_change_young_mtime_and_periodically() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut w = ServiceDirWatch {
+            dir: dir.path().to_owned(),
+            mtime: None,
+            listed_at: None,
+        };
+        let t0 = Instant::now();
+        assert!(w.should_list(t0), "first pass lists");
+        // The directory was just created: its mtime is too young to trust.
+        assert!(w.should_list(t0));
+        std::thread::sleep(ServiceDirWatch::TRUST_AFTER + Duration::from_millis(50));
+        // The young passes listed everything up to a time long after the mtime's
+        // tick, so an old, unchanged mtime means nothing new.
+        assert!(!w.should_list(t0), "nothing changed: no listing");
+        std::fs::write(dir.path().join("new.service"), b"").unwrap();
+        assert!(w.should_list(t0), "a new service file lists");
+        std::thread::sleep(ServiceDirWatch::TRUST_AFTER + Duration::from_millis(50));
+        assert!(!w.should_list(t0));
+        assert!(
+            w.should_list(t0 + ServiceDirWatch::FULL_LIST_EVERY),
+            "a full listing every FULL_LIST_EVERY regardless"
+        );
+        // A missing directory (no service yet) always lists.
+        let mut gone = ServiceDirWatch {
+            dir: dir.path().join("missing"),
+            mtime: None,
+            listed_at: Some(t0),
+        };
+        assert!(gone.should_list(t0));
     }
 }
