@@ -68,7 +68,9 @@ pub use endpoint::{
     HeadingPublisher, HeadingSubscriber, OpenError, Receiver, RecvError, SendError, Sender,
     VelocityPublisher, VelocitySubscriber,
 };
-pub use names::{validate_source_name, IpcConfig, NameError, DEFAULT_PREFIX};
+pub use names::{
+    validate_source_name, IpcConfig, NameError, DEFAULT_PREFIX, EXPIRED_CONNECTION_BUFFER,
+};
 pub use remote::{peer_config, ZenohHeadingSubscriber, ZenohOpenError, DEFAULT_ZENOH_PORT};
 pub use settings::{Message, ServiceSettings, SERVICE_SETTINGS};
 pub use signals::termination_requested;

@@ -201,12 +201,18 @@ impl IpcConfig {
     }
 
     /// The iceoryx2 config that nodes are created with: the override, else a copy of
-    /// the process-wide one.
+    /// the process-wide one, with the subscriber's expired-connection buffer capped
+    /// at [`EXPIRED_CONNECTION_BUFFER`].
     pub fn iceoryx2_config(&self) -> Config {
-        match &self.iceoryx2 {
+        let mut c = match &self.iceoryx2 {
             Some(c) => c.clone(),
             None => Config::global_config().clone(),
-        }
+        };
+        let ps = &mut c.defaults.publish_subscribe;
+        ps.subscriber_expired_connection_buffer = ps
+            .subscriber_expired_connection_buffer
+            .min(EXPIRED_CONNECTION_BUFFER.max(ps.subscriber_max_borrowed_samples));
+        c
     }
 
     /// `<prefix>/<source>/velocity`, the service a source publishes on.
@@ -249,6 +255,14 @@ impl IpcConfig {
         Ok(format!("{}/{}/{}", self.prefix, source, suffix))
     }
 }
+
+/// Connections to publishers that went away which a subscriber keeps while it still
+/// holds their samples. iceoryx2's default, 128, preallocates about 480 KB of heap
+/// per subscriber (`Subscriber::new`, measured with heaptrack), i.e. most of ghnetd's
+/// resident memory with 100 sources. ghnet's receivers copy each sample out and
+/// release it at once, so they never hold more than iceoryx2's
+/// `subscriber_max_borrowed_samples` (2 by default), which stays the lower bound.
+pub const EXPIRED_CONNECTION_BUFFER: usize = 4;
 
 /// Applies the optional global-prefix and root-path overrides to `base`.
 ///
