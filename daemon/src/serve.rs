@@ -332,15 +332,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
             // Samples that arrived before a listener was attached (or before it
             // existed) have no pending wake-up; answer them now.
             for (p, s) in ports.iter().zip(states.iter_mut()) {
-                serve(
-                    p,
-                    s,
-                    &mut d.predictor,
-                    &mut d.batch,
-                    &d.limits,
-                    &d.tag,
-                    d.zenoh.as_ref(),
-                );
+                d.serve(p, s);
             }
             loop {
                 let mut tick_due = false;
@@ -348,15 +340,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
                     if id.has_event_from(&tick) {
                         tick_due = true;
                     } else if let Some(i) = guards.iter().position(|g| id.has_event_from(g)) {
-                        serve(
-                            &ports[i],
-                            &mut states[i],
-                            &mut d.predictor,
-                            &mut d.batch,
-                            &d.limits,
-                            &d.tag,
-                            d.zenoh.as_ref(),
-                        );
+                        d.serve(&ports[i], &mut states[i]);
                     }
                     CallbackProgression::Continue
                 };
@@ -381,15 +365,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
     // the iceoryx2 resources in order).
     info!("shutdown requested: answering buffered samples");
     for (p, s) in ports.iter().zip(states.iter_mut()) {
-        serve(
-            p,
-            s,
-            &mut d.predictor,
-            &mut d.batch,
-            &d.limits,
-            &d.tag,
-            d.zenoh.as_ref(),
-        );
+        d.serve(p, s);
     }
     let stats = d.stats(&ports, &states);
     d.log_stats(&ports, &states);
@@ -549,6 +525,19 @@ fn deliver(ports: &Ports, state: &mut State, mut answer: HeadingEstimate, t0: In
 }
 
 impl Daemon {
+    /// Answers everything source `p` has buffered (see the free [`serve`]).
+    fn serve(&mut self, p: &Ports, s: &mut State) {
+        serve(
+            p,
+            s,
+            &mut self.predictor,
+            &mut self.batch,
+            &self.limits,
+            &self.tag,
+            self.zenoh.as_ref(),
+        );
+    }
+
     fn open_source(&self, name: &str, is_static: bool) -> anyhow::Result<Ports> {
         let velocity = VelocitySubscriber::with_node(&self.node, &self.ipc, name)?;
         let heading = HeadingPublisher::with_node(&self.node, &self.ipc, name)?;

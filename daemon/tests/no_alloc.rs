@@ -48,22 +48,52 @@ fn allocations(f: impl FnOnce()) -> u64 {
     ALLOCS.with(|a| a.get())
 }
 
+/// What both tests need: a private iceoryx2 namespace with the three ports ghnetd
+/// uses for one source, and the answer path's state on the `paper-s1` model.
+struct Fixture {
+    _ns: TestNamespace,
+    gnss: VelocityPublisher,
+    velocity: VelocitySubscriber,
+    heading: HeadingPublisher,
+    tag: ModelTag,
+    predictor: ghnet_models::Predictor,
+    limits: Limits,
+    tracker: Tracker,
+}
+
+impl Fixture {
+    fn new(namespace: &str, source: &str) -> Self {
+        let ns = TestNamespace::new(namespace);
+        let ipc = ns.ipc();
+        let model = Arc::new(ghnet_models::Model::builtin("paper-s1").unwrap());
+        Self {
+            gnss: VelocityPublisher::new(&ipc, source).unwrap(),
+            velocity: VelocitySubscriber::new(&ipc, source).unwrap(),
+            heading: HeadingPublisher::new(&ipc, source).unwrap(),
+            tag: ModelTag {
+                id: model.id(),
+                name: HeadingEstimate::encode_model_name(model.name()),
+            },
+            predictor: ghnet_models::Predictor::new(model),
+            limits: Limits { max_speed: 100.0 },
+            tracker: Tracker::default(),
+            _ns: ns,
+        }
+    }
+}
+
 #[test]
 fn receive_answer_publish_allocates_nothing() {
-    let ns = TestNamespace::new("noalloc");
-    let ipc = ns.ipc();
-    let gnss = VelocityPublisher::new(&ipc, "n").unwrap();
-    let velocity = VelocitySubscriber::new(&ipc, "n").unwrap();
-    let heading = HeadingPublisher::new(&ipc, "n").unwrap();
-
-    let model = Arc::new(ghnet_models::Model::builtin("paper-s1").unwrap());
-    let tag = ModelTag {
-        id: model.id(),
-        name: HeadingEstimate::encode_model_name(model.name()),
-    };
-    let mut predictor = ghnet_models::Predictor::new(model);
-    let limits = Limits { max_speed: 100.0 };
-    let mut tracker = Tracker::default();
+    let Fixture {
+        _ns,
+        gnss,
+        velocity,
+        heading,
+        tag,
+        mut predictor,
+        limits,
+        mut tracker,
+    } = Fixture::new("noalloc", "n");
 
     // Warm-up: iceoryx2 connects ports lazily on first use.
     for seq in 0..3 {
@@ -113,20 +143,16 @@ fn receive_answer_publish_allocates_nothing() {
 /// per-loan object may allocate.
 #[test]
 fn batch_path_allocates_nothing() {
-    let ns = TestNamespace::new("noallocb");
-    let ipc = ns.ipc();
-    let gnss = VelocityPublisher::new(&ipc, "b").unwrap();
-    let velocity = VelocitySubscriber::new(&ipc, "b").unwrap();
-    let heading = HeadingPublisher::new(&ipc, "b").unwrap();
-
-    let model = Arc::new(ghnet_models::Model::builtin("paper-s1").unwrap());
-    let tag = ModelTag {
-        id: model.id(),
-        name: HeadingEstimate::encode_model_name(model.name()),
-    };
-    let mut predictor = ghnet_models::Predictor::new(model);
-    let limits = Limits { max_speed: 100.0 };
-    let mut tracker = Tracker::default();
+    let Fixture {
+        _ns,
+        gnss,
+        velocity,
+        heading,
+        tag,
+        mut predictor,
+        limits,
+        mut tracker,
+    } = Fixture::new("noallocb", "b");
 
     // The daemon's scratch, made once.
     const N: usize = 64;

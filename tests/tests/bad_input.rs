@@ -16,7 +16,7 @@ use ghnet_client::{
     VelocitySample, ZenohHeadingSubscriber,
 };
 use ghnet_tests::{
-    now_ns, unique_prefix, zenoh_barrier, zenoh_session, Daemon, Namespace, WATCHDOG,
+    now_ns, recv_answer, unique_prefix, zenoh_barrier, zenoh_session, Daemon, Namespace, WATCHDOG,
 };
 
 /// What a sample's answer must be.
@@ -50,16 +50,11 @@ fn good(t0: u64, seq: u64) -> VelocitySample {
 /// The next answer that is not a `Stale` notice (ghnetd sends one when a source has
 /// been silent for `sources.stale_after_ms`; a loaded machine may pause that long).
 fn next_answer(headings: &HeadingSubscriber, daemon: &Daemon) -> HeadingEstimate {
-    loop {
+    daemon.assert_running();
+    recv_answer(headings, WATCHDOG).unwrap_or_else(|| {
         daemon.assert_running();
-        let h = headings
-            .recv_timeout(WATCHDOG)
-            .expect("receive")
-            .unwrap_or_else(|| panic!("watchdog: no answer; log:\n{}", daemon.log()));
-        if h.heading_status() != Some(HeadingStatus::Stale) {
-            return h;
-        }
-    }
+        panic!("watchdog: no answer; log:\n{}", daemon.log())
+    })
 }
 
 fn check(want: Want, h: &HeadingEstimate, what: &str) {
