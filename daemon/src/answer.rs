@@ -379,7 +379,7 @@ mod tests {
         let column = |f: fn(&VelocitySample) -> f32| -> Vec<f32> {
             model_inputs.iter().map(|s| f(s)).collect()
         };
-        let mut predictions = vec![p.predict(0.0, 0.0); model_inputs.len()];
+        let mut predictions = vec![ghnet_models::Prediction::INVALID; model_inputs.len()];
         p.predict_batch_with_accuracy(
             &column(|s| s.v_north),
             &column(|s| s.v_east),

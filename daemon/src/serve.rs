@@ -112,15 +112,14 @@ struct Batch {
 }
 
 impl Batch {
-    fn new(predictor: &mut Predictor) -> Self {
-        let filler = predictor.predict(0.0, 0.0);
+    fn new() -> Self {
         Self {
             samples: Vec::with_capacity(BATCH),
             to_model: vec![false; BATCH],
             v_north: vec![0.0; BATCH],
             v_east: vec![0.0; BATCH],
             speed_acc: vec![0.0; BATCH],
-            predictions: vec![filler; BATCH],
+            predictions: vec![Prediction::INVALID; BATCH],
         }
     }
 }
@@ -238,8 +237,8 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         id: model.id(),
         name: HeadingEstimate::encode_model_name(model.name()),
     };
-    let mut predictor = Predictor::new(model.clone()).with_policy(config.status_policy());
-    let batch = Batch::new(&mut predictor);
+    let predictor = Predictor::new(model.clone()).with_policy(config.status_policy());
+    let batch = Batch::new();
     let zenoh = if config.zenoh.enabled {
         let model_json =
             serde_json::to_string(model.meta()).context("cannot serialise the model metadata")?;

@@ -159,7 +159,7 @@ fn batch_path_allocates_nothing() {
     let mut samples: Vec<VelocitySample> = Vec::with_capacity(N);
     let mut to_model = [false; N];
     let (mut vn, mut ve, mut acc) = ([0f32; N], [0f32; N], [0f32; N]);
-    let mut predictions = vec![predictor.predict(0.0, 0.0); N];
+    let mut predictions = vec![ghnet_models::Prediction::INVALID; N];
 
     let mut ours = 0;
     let mut publishes = 0;

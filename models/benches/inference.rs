@@ -23,7 +23,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use faer::Mat;
 use ghnet_models::gelu::gelu_inplace_with;
 use ghnet_models::simd::{peak_fma_loop, peak_loop_flops, Kernel};
-use ghnet_models::{Model, Prediction, Predictor, Status};
+use ghnet_models::{Model, Prediction, Predictor};
 
 fn inputs(n: usize) -> (Vec<f32>, Vec<f32>) {
     (0..n)
@@ -68,16 +68,7 @@ fn bench(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("batch");
     for n in [16usize, 256, 4096] {
-        let mut out = vec![
-            Prediction {
-                heading_deg: 0.0,
-                std_deg: 0.0,
-                atan2_deg: 0.0,
-                speed: 0.0,
-                status: Status::Invalid,
-            };
-            n
-        ];
+        let mut out = vec![Prediction::INVALID; n];
         g.throughput(Throughput::Elements(n as u64));
         g.bench_with_input(BenchmarkId::new("predict_batch", n), &n, |b, &n| {
             b.iter(|| p.predict_batch(black_box(&vn[..n]), black_box(&ve[..n]), &mut out))

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use ghnet_models::gelu::gelu_inplace_with;
 use ghnet_models::net::Network;
 use ghnet_models::simd::{peak_fma_loop, peak_loop_flops, Kernel};
-use ghnet_models::{Model, Prediction, Predictor, Status};
+use ghnet_models::{Model, Prediction, Predictor};
 use serde::Serialize;
 
 /// Batch size of the throughput figures.
@@ -179,16 +179,7 @@ pub fn run(model: &Arc<Model>, kernel: Kernel, seconds: f64) -> Report {
         i = (i + 1) & 4095;
         black_box(p.predict(black_box(vn[i]), black_box(ve[i])));
     });
-    let mut preds = vec![
-        Prediction {
-            heading_deg: 0.0,
-            std_deg: 0.0,
-            atan2_deg: 0.0,
-            speed: 0.0,
-            status: Status::Invalid,
-        };
-        BATCH
-    ];
+    let mut preds = vec![Prediction::INVALID; BATCH];
     let predictor_batch = median(rates(seconds, BATCH as f64, || {
         p.predict_batch(black_box(&vn[..BATCH]), black_box(&ve[..BATCH]), &mut preds);
         black_box(&preds);

@@ -127,13 +127,9 @@ pub fn gelu_inplace(xs: &mut [f32]) {
 /// GELU in place with a given kernel (an unavailable one falls back to portable code);
 /// for benches and for tests that hold the paths against each other.
 pub fn gelu_inplace_with(kernel: Kernel, xs: &mut [f32]) {
-    let kernel = if kernel.is_available() {
-        kernel
-    } else {
-        Kernel::Portable
-    };
+    let kernel = kernel.or_portable();
     match kernel {
-        // SAFETY: the kernel is available on this CPU (checked above).
+        // SAFETY: the kernel is available on this CPU (`or_portable` above).
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx512 => unsafe { gelu_slice_avx512(xs) },
         #[cfg(target_arch = "x86_64")]

@@ -132,16 +132,7 @@ pub fn run(
     let mut vn = vec![0.0f32; BLOCK];
     let mut ve = vec![0.0f32; BLOCK];
     let mut acc = vec![f32::NAN; BLOCK];
-    let mut preds = vec![
-        Prediction {
-            heading_deg: 0.0,
-            std_deg: 0.0,
-            atan2_deg: 0.0,
-            speed: 0.0,
-            status: Status::Invalid,
-        };
-        BLOCK
-    ];
+    let mut preds = vec![Prediction::INVALID; BLOCK];
     let mut summary = InferSummary::default();
     let mut num = Vec::with_capacity(32);
     loop {

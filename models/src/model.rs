@@ -221,7 +221,9 @@ pub struct Prediction {
 }
 
 impl Prediction {
-    const INVALID: Prediction = Prediction {
+    /// The answer to invalid input: status `Invalid`, every number NaN. Also the
+    /// filler for output buffers handed to `predict_batch*`, which overwrite them.
+    pub const INVALID: Prediction = Prediction {
         heading_deg: f32::NAN,
         std_deg: f32::NAN,
         atan2_deg: f32::NAN,

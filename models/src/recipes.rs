@@ -157,16 +157,7 @@ pub fn model_estimate(model: &std::sync::Arc<Model>, samples: &[Sample]) -> Esti
     let vn: Vec<f32> = samples.iter().map(|s| s.v_north).collect();
     let ve: Vec<f32> = samples.iter().map(|s| s.v_east).collect();
     let acc: Vec<f32> = samples.iter().map(|s| s.speed_acc).collect();
-    let mut out = vec![
-        crate::Prediction {
-            heading_deg: 0.0,
-            std_deg: 0.0,
-            atan2_deg: 0.0,
-            speed: 0.0,
-            status: crate::Status::Invalid,
-        };
-        samples.len()
-    ];
+    let mut out = vec![crate::Prediction::INVALID; samples.len()];
     p.predict_batch_with_accuracy(&vn, &ve, &acc, &mut out);
     Estimate {
         name: model.name().to_string(),

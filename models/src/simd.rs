@@ -34,6 +34,16 @@ impl Kernel {
             .unwrap_or(Kernel::Portable)
     }
 
+    /// This kernel if this CPU can run it, else [`Kernel::Portable`]: what the
+    /// explicit-kernel entry points (benches, tests) fall back to.
+    pub fn or_portable(self) -> Kernel {
+        if self.is_available() {
+            self
+        } else {
+            Kernel::Portable
+        }
+    }
+
     /// Whether this CPU can run the kernel (checked at run time, cached by std).
     pub fn is_available(self) -> bool {
         match self {
@@ -392,13 +402,9 @@ const PEAK_CHAINS: usize = 12;
 /// This is the reference for "share of peak": a loop that does nothing but fused
 /// multiply-adds from registers. Count its work with [`peak_loop_flops`].
 pub fn peak_fma_loop(kernel: Kernel, iters: u64) -> f32 {
-    let kernel = if kernel.is_available() {
-        kernel
-    } else {
-        Kernel::Portable
-    };
+    let kernel = kernel.or_portable();
     match kernel {
-        // SAFETY: the kernel is available on this CPU (checked above).
+        // SAFETY: the kernel is available on this CPU (`or_portable` above).
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx512 => unsafe { peak_avx512(iters) },
         #[cfg(target_arch = "x86_64")]
@@ -410,11 +416,7 @@ pub fn peak_fma_loop(kernel: Kernel, iters: u64) -> f32 {
 
 /// Floating-point operations done by [`peak_fma_loop`]: 2 per lane per FMA.
 pub fn peak_loop_flops(kernel: Kernel, iters: u64) -> u64 {
-    let kernel = if kernel.is_available() {
-        kernel
-    } else {
-        Kernel::Portable
-    };
+    let kernel = kernel.or_portable();
     iters * PEAK_CHAINS as u64 * kernel.lanes() as u64 * 2
 }
 
