@@ -219,6 +219,24 @@ impl Default for ZenohSection {
     }
 }
 
+/// ghnetd's Zenoh transmit queue when no `zenoh.config_file` is given (JSON5 values
+/// by config path; a config file replaces them).
+///
+/// The heading publishers drop on congestion, and the last heading of each drain is
+/// `express` (it sends its batch at once), so 100 sources answering one sample each
+/// take 100 batches. Zenoh's default queue (2 batches, drop after 1 ms) lost 18% of
+/// such a burst on a loaded 2-core machine (tests/tests/soak.rs). 16 batches, and up
+/// to 50 ms for one to free before dropping: no loss there. A consumer that stops
+/// reading costs the loop at most one such wait: while the queue stays congested,
+/// Zenoh drops further headings without waiting.
+pub const ZENOH_TX_DEFAULTS: [(&str, &str); 2] = [
+    ("transport/link/tx/queue/size/data", "16"),
+    (
+        "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
+        "50000",
+    ),
+];
+
 impl ZenohSection {
     /// The Zenoh session config: `config_file` (or Zenoh's defaults), then these keys.
     /// Errors name the key.
@@ -229,21 +247,7 @@ impl ZenohSection {
                 .map_err(|e| anyhow::anyhow!("zenoh.config_file {}: {e}", path.display()))?,
             None => {
                 let mut c = zenoh::Config::default();
-                // ghnetd's transmit queue, unless a config file says otherwise. The
-                // heading publisher is `express` with congestion control *drop*, so
-                // every heading takes a batch of its own; Zenoh's default queue (2
-                // batches, drop after 1 ms) lost 18% of a burst of 100 headings on a
-                // loaded 2-core machine (tests/tests/soak.rs). 16 batches, and up to
-                // 50 ms for one to free before dropping: no loss there. A consumer
-                // that stops reading costs the loop at most one such wait: while the
-                // queue stays congested, Zenoh drops further headings without waiting.
-                for (key, value) in [
-                    ("transport/link/tx/queue/size/data", "16"),
-                    (
-                        "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
-                        "50000",
-                    ),
-                ] {
+                for (key, value) in ZENOH_TX_DEFAULTS {
                     c.insert_json5(key, value)
                         .map_err(|e| anyhow::anyhow!("zenoh default {key}: {e}"))?;
                 }

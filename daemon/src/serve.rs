@@ -25,7 +25,7 @@ use tracing::{debug, info, warn};
 
 use crate::answer::{stale_message, Counters, Limits, ModelTag, Tracker};
 use crate::config::Config;
-use crate::output::HeadingOutput;
+use crate::output::{Burst, HeadingOutput};
 use crate::remote::{LatencyRing, ZenohSide};
 use crate::{ShutdownFlag, Stats};
 
@@ -444,7 +444,7 @@ fn serve(
                 let answer = state
                     .tracker
                     .answer(&batch.samples[i], predictor, limits, tag);
-                answered_any |= deliver(ports, state, answer, t);
+                answered_any |= deliver(ports, state, answer, t, Burst::of(i, n));
             }
         } else {
             // Book in arrival order, one model call for every sample that needs it,
@@ -474,7 +474,7 @@ fn serve(
                     batch.predictions[k - 1]
                 });
                 let answer = state.tracker.finish(&batch.samples[i], prediction, tag);
-                answered_any |= deliver(ports, state, answer, t0);
+                answered_any |= deliver(ports, state, answer, t0, Burst::of(i, n));
             }
         }
         if n < BATCH {
@@ -500,13 +500,19 @@ fn serve(
 
 /// Stamps the processing time (since `t0`) on `answer`, publishes it on every
 /// output and books the result; `true` if every output took it.
-fn deliver(ports: &Ports, state: &mut State, mut answer: HeadingEstimate, t0: Instant) -> bool {
+fn deliver(
+    ports: &Ports,
+    state: &mut State,
+    mut answer: HeadingEstimate,
+    t0: Instant,
+    burst: Burst,
+) -> bool {
     answer.processing_ns = t0.elapsed().as_nanos() as u64;
     state.latency.push(answer.processing_ns);
     state.last = Some(answer);
     let mut delivered = true;
     for out in &ports.outputs {
-        if let Err(e) = out.publish(&answer) {
+        if let Err(e) = out.publish(&answer, burst) {
             delivered = false;
             // 1st, 2nd, 4th, 8th, ... failure: visible without flooding the log.
             let n = state.tracker.counters.send_errors + 1;
@@ -674,7 +680,7 @@ impl Daemon {
         s.tracker.counters.stale += 1;
         let msg = stale_message(&last);
         for out in &p.outputs {
-            if let Err(e) = out.publish(&msg).and_then(|()| out.flush()) {
+            if let Err(e) = out.publish(&msg, Burst::Last).and_then(|()| out.flush()) {
                 warn!(source = %p.name, output = out.kind(), error = %e, "cannot publish the Stale message");
             }
         }

@@ -11,62 +11,113 @@ use ghnet_client::{
 };
 use ghnet_tests::{now_ns, test_model, unique_prefix, zenoh_session, Daemon, Namespace, WATCHDOG};
 
-/// Sends warm-up samples until one comes back over Zenoh too: the subscriber's
-/// declaration has reached the daemon. Drains both subscribers afterwards.
-fn warm_up(
-    gnss: &VelocityPublisher,
-    ice: &HeadingSubscriber,
-    zen: &ZenohHeadingSubscriber,
-    daemon: &Daemon,
-) {
-    let mut seq = 0;
-    loop {
-        daemon.assert_running();
-        assert!(seq < 2_000, "no heading over Zenoh after {seq} samples");
-        gnss.send(VelocitySample::new(now_ns(), seq, 1.0, 1.0, 0.0))
-            .unwrap();
-        ice.recv_timeout(WATCHDOG)
-            .unwrap()
-            .expect("iceoryx2 answer");
-        seq += 1;
-        if zen
-            .recv_timeout(Duration::from_millis(20))
+/// ghnetd serving one static source, seen through a velocity publisher and a heading
+/// subscriber on each output.
+struct OneSource {
+    // Field order = drop order: the ports before the namespace they live in.
+    gnss: VelocityPublisher,
+    ice: HeadingSubscriber,
+    zen: ZenohHeadingSubscriber,
+    session: ghnet_client::zenoh::Session,
+    daemon: Daemon,
+    ipc: ghnet_client::IpcConfig,
+    prefix: String,
+    _ns: Namespace,
+}
+
+impl OneSource {
+    /// Starts ghnetd for `source` under a fresh prefix and warms it up: sends
+    /// samples until one comes back over Zenoh too (the subscriber's declaration has
+    /// reached the daemon), then drains both subscribers.
+    fn start(source: &str) -> Self {
+        let ns = Namespace::new();
+        let prefix = unique_prefix("zt");
+        let ipc = ns.ipc().with_prefix(&prefix).unwrap();
+        let daemon = Daemon::start(
+            &ns,
+            &[
+                "--source",
+                source,
+                "--discovery",
+                "false",
+                "--service-prefix",
+                &prefix,
+            ],
+        );
+        let session = zenoh_session(&daemon.zenoh_endpoint());
+        let zen = ZenohHeadingSubscriber::new(&session, &ipc, source).unwrap();
+        let ice = HeadingSubscriber::new(&ipc, source).unwrap();
+        let gnss = VelocityPublisher::new(&ipc, source).unwrap();
+        daemon.wait_serving(&gnss);
+        let mut seq = 0;
+        loop {
+            daemon.assert_running();
+            assert!(seq < 2_000, "no heading over Zenoh after {seq} samples");
+            gnss.send(VelocitySample::new(now_ns(), seq, 1.0, 1.0, 0.0))
+                .unwrap();
+            ice.recv_timeout(WATCHDOG)
+                .unwrap()
+                .expect("iceoryx2 answer");
+            seq += 1;
+            if zen
+                .recv_timeout(Duration::from_millis(20))
+                .unwrap()
+                .is_some()
+            {
+                break;
+            }
+        }
+        while zen
+            .recv_timeout(Duration::from_millis(200))
             .unwrap()
             .is_some()
-        {
-            break;
+        {}
+        Self {
+            gnss,
+            ice,
+            zen,
+            session,
+            daemon,
+            ipc,
+            prefix,
+            _ns: ns,
         }
     }
-    while zen
-        .recv_timeout(Duration::from_millis(200))
-        .unwrap()
-        .is_some()
-    {}
+}
+
+/// The next heading over Zenoh, `got` of `of` so far; after [`WATCHDOG`] without
+/// one, panics with the daemon's log.
+fn next_zenoh(
+    zen: &ZenohHeadingSubscriber,
+    daemon: &Daemon,
+    got: usize,
+    of: usize,
+) -> HeadingEstimate {
+    daemon.assert_running();
+    zen.recv_timeout(WATCHDOG)
+        .expect("decodes")
+        .unwrap_or_else(|| {
+            panic!(
+                "watchdog: {got} of {of} headings over Zenoh; log:\n{}",
+                daemon.log()
+            )
+        })
 }
 
 #[test]
 fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
-    let ns = Namespace::new();
-    let prefix = unique_prefix("zt");
-    let ipc = ns.ipc().with_prefix(&prefix).unwrap();
-    let daemon = Daemon::start(
-        &ns,
-        &[
-            "--source",
-            "z0",
-            "--discovery",
-            "false",
-            "--service-prefix",
-            &prefix,
-        ],
-    );
-    let session = zenoh_session(&daemon.zenoh_endpoint());
-    let zen = ZenohHeadingSubscriber::new(&session, &ipc, "z0").unwrap();
+    // Bindings drop in reverse: the namespace last.
+    let OneSource {
+        _ns,
+        daemon,
+        session,
+        zen,
+        ice,
+        gnss,
+        ipc,
+        prefix,
+    } = OneSource::start("z0");
     assert_eq!(zen.key(), format!("{prefix}/z0/heading"));
-    let ice = HeadingSubscriber::new(&ipc, "z0").unwrap();
-    let gnss = VelocityPublisher::new(&ipc, "z0").unwrap();
-    daemon.wait_serving(&gnss);
-    warm_up(&gnss, &ice, &zen, &daemon);
 
     // Valid, stationary, invalid (NaN) and fast inputs; large sequence numbers.
     let n = 400u64;
@@ -90,17 +141,7 @@ fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
     }
     let mut from_zenoh: BTreeMap<u64, [u8; 64]> = BTreeMap::new();
     while from_zenoh.len() < n as usize {
-        daemon.assert_running();
-        let h: HeadingEstimate =
-            zen.recv_timeout(WATCHDOG)
-                .expect("decodes")
-                .unwrap_or_else(|| {
-                    panic!(
-                        "watchdog: {} of {n} headings over Zenoh; log:\n{}",
-                        from_zenoh.len(),
-                        daemon.log()
-                    )
-                });
+        let h = next_zenoh(&zen, &daemon, from_zenoh.len(), n as usize);
         assert!(h.seq >= first, "warm-up heading after the drain: {h:?}");
         assert!(
             from_zenoh.insert(h.seq, h.to_le_bytes()).is_none(),
@@ -166,6 +207,72 @@ fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
         ipc.zenoh_presence_key(&zid)
     );
 
+    let (status, log) = daemon.terminate();
+    assert!(status.success(), "{log}");
+}
+
+/// A source that delivers in bursts (publish many, notify once) is drained in one
+/// go; its headings go out over Zenoh batched but the last, which is express. Every
+/// heading must still arrive, once, in the order sent, byte for byte as on
+/// iceoryx2 (two publishers share the key; they must not reorder).
+#[test]
+fn bursts_arrive_on_zenoh_complete_and_in_order() {
+    let OneSource {
+        _ns,
+        daemon,
+        session: _session,
+        zen,
+        ice,
+        gnss,
+        ..
+    } = OneSource::start("b0");
+
+    // Bursts of 1 to 120 samples (the buffers hold 128), valid and invalid mixed.
+    let first = 1u64 << 32;
+    let mut seq = first;
+    let mut from_ice = Vec::new();
+    let t0 = now_ns();
+    for burst in [120u64, 1, 2, 64, 3, 120, 17, 100] {
+        let end = seq + burst;
+        for s in seq..end {
+            let (vn, ve) = if s % 7 == 0 {
+                (f32::NAN, 0.0)
+            } else {
+                (5.0, 0.01 * (s % 100) as f32)
+            };
+            gnss.publish(VelocitySample::new(t0 + s, s, vn, ve, 0.0))
+                .unwrap();
+        }
+        gnss.notify().unwrap();
+        while seq < end {
+            let h = ice.recv_timeout(WATCHDOG).unwrap().unwrap_or_else(|| {
+                panic!(
+                    "watchdog: no iceoryx2 answer to {seq}; log:\n{}",
+                    daemon.log()
+                )
+            });
+            assert_eq!(h.seq, seq, "iceoryx2 answers in order");
+            from_ice.push(h.to_le_bytes());
+            seq += 1;
+        }
+    }
+    let mut from_zenoh = Vec::new();
+    while from_zenoh.len() < from_ice.len() {
+        let h = next_zenoh(&zen, &daemon, from_zenoh.len(), from_ice.len());
+        assert_eq!(
+            h.seq,
+            first + from_zenoh.len() as u64,
+            "Zenoh headings in order, none missing"
+        );
+        from_zenoh.push(h.to_le_bytes());
+    }
+    assert!(from_zenoh == from_ice, "the same bytes on both outputs");
+    assert!(
+        zen.recv_timeout(Duration::from_millis(200))
+            .unwrap()
+            .is_none(),
+        "no extra heading"
+    );
     let (status, log) = daemon.terminate();
     assert!(status.success(), "{log}");
 }
