@@ -2,8 +2,9 @@
 //! work: one iceoryx2 node, one `WaitSet` woken by each source's velocity listener,
 //! drain every buffered sample, answer each with a `HeadingEstimate` that only echoes
 //! `seq` and `timestamp_ns`, publish it on iceoryx2 and on Zenoh (same QoS as
-//! ghnetd: drop, high priority, express), notify once per batch. The difference
-//! between its figures and ghnetd's is what the daemon itself costs.
+//! ghnetd: drop, high priority, every heading of a drain batched but the last, which
+//! is express), notify once per batch. The difference between its figures and
+//! ghnetd's is what the daemon itself costs.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -29,7 +30,8 @@ pub struct EchoArgs {
 struct Ports {
     velocity: VelocitySubscriber,
     heading: HeadingPublisher,
-    zenoh: Option<zenoh::pubsub::Publisher<'static>>,
+    /// Batching and express publisher of the heading key, as in ghnetd.
+    zenoh: Option<[zenoh::pubsub::Publisher<'static>; 2]>,
 }
 
 pub fn run(args: EchoArgs) -> anyhow::Result<()> {
@@ -40,8 +42,14 @@ pub fn run(args: EchoArgs) -> anyhow::Result<()> {
         (l, c) => {
             let listen: Vec<String> = l.iter().cloned().collect();
             let connect: Vec<String> = c.iter().cloned().collect();
-            let config = ghnet_client::peer_config(&listen, &connect)
+            let mut config = ghnet_client::peer_config(&listen, &connect)
                 .map_err(|e| anyhow::anyhow!("zenoh config: {e}"))?;
+            // ghnetd's transmit queue, so the two lose (or not) alike.
+            for (key, value) in ghnetd::config::ZENOH_TX_DEFAULTS {
+                config
+                    .insert_json5(key, value)
+                    .map_err(|e| anyhow::anyhow!("zenoh config {key}: {e}"))?;
+            }
             Some(
                 zenoh::open(config)
                     .wait()
@@ -57,15 +65,18 @@ pub fn run(args: EchoArgs) -> anyhow::Result<()> {
     let mut ports = Vec::with_capacity(args.sources.len());
     for s in &args.sources {
         let zenoh = match &session {
-            Some(session) => Some(
-                session
-                    .declare_publisher(ipc.zenoh_heading_key(s)?)
-                    .congestion_control(zenoh::qos::CongestionControl::Drop)
-                    .priority(zenoh::qos::Priority::DataHigh)
-                    .express(true)
-                    .wait()
-                    .map_err(|e| anyhow::anyhow!("zenoh publisher: {e}"))?,
-            ),
+            Some(session) => {
+                let declare = |express: bool| -> anyhow::Result<_> {
+                    session
+                        .declare_publisher(ipc.zenoh_heading_key(s)?)
+                        .congestion_control(zenoh::qos::CongestionControl::Drop)
+                        .priority(zenoh::qos::Priority::DataHigh)
+                        .express(express)
+                        .wait()
+                        .map_err(|e| anyhow::anyhow!("zenoh publisher: {e}"))
+                };
+                Some([declare(false)?, declare(true)?])
+            }
             None => None,
         };
         ports.push(Ports {
@@ -105,6 +116,9 @@ pub fn run(args: EchoArgs) -> anyhow::Result<()> {
 fn serve(p: &Ports) {
     let _ = p.velocity.drain_notifications();
     let mut any = false;
+    // The last heading of the drain is known only when `try_recv` comes back empty,
+    // so each Zenoh put waits for the next sample to say whether it was the last.
+    let mut held: Option<HeadingEstimate> = None;
     while let Ok(Some(s)) = p.velocity.try_recv() {
         let h = HeadingEstimate {
             timestamp_ns: s.timestamp_ns,
@@ -119,10 +133,13 @@ fn serve(p: &Ports) {
             model_name: [0; ghnet_client::MODEL_NAME_LEN],
         };
         let _ = p.heading.publish(h);
-        if let Some(z) = &p.zenoh {
-            let _ = z.put(encode_zenoh(&h).to_vec()).wait();
+        if let (Some([batched, _]), Some(prev)) = (&p.zenoh, held.replace(h)) {
+            let _ = batched.put(encode_zenoh(&prev)).wait();
         }
         any = true;
+    }
+    if let (Some([_, express]), Some(last)) = (&p.zenoh, held) {
+        let _ = express.put(encode_zenoh(&last)).wait();
     }
     if any {
         let _ = p.heading.notify();

@@ -1,13 +1,16 @@
 //! Sustained throughput: many sources publishing as fast as the target answers,
-//! Zenoh output on (with a subscriber here, so every heading really travels), every
-//! sequence number checked to be answered exactly once on iceoryx2.
+//! Zenoh output on with a subscriber here, every sequence number checked to be
+//! answered exactly once on iceoryx2 AND over Zenoh.
 //!
 //! Flow control respects the bounded buffers: each source keeps at most
-//! `in_flight` samples unanswered (the subscriber buffers are 128 deep, so nothing
-//! is overwritten unless the target really loses samples). One thread drives all
-//! sources; it sleeps on a `WaitSet` holding every heading listener and tops a
-//! source up when its answers come back.
+//! `in_flight` samples that have not been answered on both outputs (the subscriber
+//! buffers are 128 deep, so nothing is overwritten unless the target really loses
+//! samples, and Zenoh is never pushed faster than this subscriber takes headings, so
+//! its congestion control never has to drop). One thread drives all sources; it
+//! sleeps on a `WaitSet` holding every heading listener and tops sources up when
+//! answers come back; Zenoh headings are booked on Zenoh's threads.
 
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -36,21 +39,31 @@ pub struct Options {
     pub notify: Notify,
 }
 
-pub struct ThroughputRun {
-    /// Answers per second over the measurement window (all sources).
-    pub rate: f64,
-    pub window: Duration,
-    pub sent: u64,
-    pub answered: u64,
+/// Losses of one output, summed over the sources.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Losses {
     /// Sequence numbers never answered (gaps, and samples still unanswered 10 s
     /// after the publishers stopped).
     pub lost: u64,
     pub duplicates: u64,
     /// Answers to sequence numbers never sent.
     pub unexpected: u64,
-    /// Headings that arrived over Zenoh, against `answered_after_zenoh_ready`.
-    pub zenoh_received: u64,
-    pub zenoh_expected: u64,
+    pub answered: u64,
+}
+
+impl Losses {
+    pub fn none(&self) -> bool {
+        self.lost + self.duplicates + self.unexpected == 0
+    }
+}
+
+pub struct ThroughputRun {
+    /// Answers per second on iceoryx2 over the measurement window (all sources).
+    pub rate: f64,
+    pub window: Duration,
+    pub sent: u64,
+    pub iceoryx2: Losses,
+    pub zenoh: Losses,
     /// Target CPU over the window, in cores (1.0 = one core busy).
     pub target_cores: f64,
     /// This process's CPU over the window, in cores.
@@ -62,31 +75,62 @@ pub struct ThroughputRun {
     pub rss_after_load: Rss,
 }
 
-#[derive(Default, Clone, Copy)]
+/// One output's record of one source's answers. Written by one thread (the
+/// driver for iceoryx2, Zenoh's receive task for Zenoh), read by the driver.
+#[derive(Default)]
+struct Book {
+    next_answer: AtomicU64,
+    lost: AtomicU64,
+    duplicates: AtomicU64,
+    unexpected: AtomicU64,
+    answered: AtomicU64,
+}
+
+impl Book {
+    /// Books an answer to `seq`, `sent` samples having been published.
+    fn book(&self, seq: u64, sent: u64) {
+        let next = self.next_answer.load(Relaxed);
+        if seq >= sent {
+            self.unexpected.fetch_add(1, Relaxed);
+        } else if seq >= next {
+            self.lost.fetch_add(seq - next, Relaxed);
+            self.next_answer.store(seq + 1, Relaxed);
+            self.answered.fetch_add(1, Relaxed);
+        } else {
+            self.duplicates.fetch_add(1, Relaxed);
+        }
+    }
+
+    fn add_to(&self, l: &mut Losses, sent: u64) {
+        // Whatever is still unanswered at the end is lost.
+        l.lost += self.lost.load(Relaxed) + (sent - self.next_answer.load(Relaxed));
+        l.duplicates += self.duplicates.load(Relaxed);
+        l.unexpected += self.unexpected.load(Relaxed);
+        l.answered += self.answered.load(Relaxed);
+    }
+}
+
+#[derive(Default)]
 struct Source {
-    next_send: u64,
-    next_answer: u64,
-    lost: u64,
-    duplicates: u64,
-    unexpected: u64,
-    answered: u64,
+    /// Raised before each sample is published, so an answer never outruns it.
+    next_send: AtomicU64,
+    iceoryx2: Book,
+    zenoh: Book,
 }
 
 impl Source {
-    fn in_flight(&self) -> u64 {
-        self.next_send - self.next_answer
+    fn sent(&self) -> u64 {
+        self.next_send.load(Relaxed)
     }
 
-    fn book(&mut self, seq: u64) {
-        if seq >= self.next_send {
-            self.unexpected += 1;
-        } else if seq >= self.next_answer {
-            self.lost += seq - self.next_answer;
-            self.next_answer = seq + 1;
-            self.answered += 1;
-        } else {
-            self.duplicates += 1;
-        }
+    /// Samples not yet answered on both outputs.
+    fn in_flight(&self) -> u64 {
+        let answered = self
+            .iceoryx2
+            .next_answer
+            .load(Relaxed)
+            .min(self.zenoh.next_answer.load(Relaxed));
+        self.sent() - answered
     }
 }
 
@@ -110,13 +154,25 @@ pub fn measure(
         .map(|s| HeadingSubscriber::with_node(&node, &ipc, s))
         .collect::<Result<Vec<_>, _>>()?;
 
-    let zenoh_count = Arc::new(AtomicU64::new(0));
-    let counter = zenoh_count.clone();
+    let state: Arc<[Source]> = sources.iter().map(|_| Source::default()).collect();
+    let index: HashMap<String, usize> = sources
+        .iter()
+        .enumerate()
+        .map(|(i, s)| Ok((ipc.zenoh_heading_key(s)?, i)))
+        .collect::<anyhow::Result<_>>()?;
+    let zenoh_state = state.clone();
     let _zenoh_sub = session
         .declare_subscriber(format!("{}/*/heading", ipc.prefix()))
         .callback(move |s| {
-            if decode_zenoh(&s.payload().to_bytes()).is_ok() {
-                counter.fetch_add(1, Relaxed);
+            let (Some(&i), Ok(h)) = (
+                index.get(s.key_expr().as_str()),
+                decode_zenoh(&s.payload().to_bytes()),
+            ) else {
+                return;
+            };
+            if h.heading_status() != Some(HeadingStatus::Stale) {
+                let src = &zenoh_state[i];
+                src.zenoh.book(h.seq, src.sent());
             }
         })
         .wait()
@@ -127,31 +183,47 @@ pub fn measure(
             && subs.iter().all(|s| s.publisher_count() > 0)
     })?;
 
-    let mut state = vec![Source::default(); sources.len()];
+    let send = |i: usize, notify: bool| -> anyhow::Result<()> {
+        let seq = state[i].next_send.fetch_add(1, Relaxed);
+        let s = moving_sample(seq);
+        if notify {
+            pubs[i].send(s)?;
+        } else {
+            pubs[i].publish(s)?;
+        }
+        Ok(())
+    };
+    let drain = |i: usize| -> anyhow::Result<()> {
+        subs[i].drain_notifications()?;
+        while let Some(h) = subs[i].try_recv()? {
+            if h.heading_status() != Some(HeadingStatus::Stale) {
+                state[i].iceoryx2.book(h.seq, state[i].sent());
+            }
+        }
+        Ok(())
+    };
+
     // Until the Zenoh subscriber's declaration has reached the target, its headings
     // go nowhere: ping source 0 until one arrives over Zenoh.
     let t0 = Instant::now();
-    while zenoh_count.load(Relaxed) == 0 {
+    while state[0].zenoh.answered.load(Relaxed) == 0 {
         target.check_running()?;
         anyhow::ensure!(
             t0.elapsed() < Duration::from_secs(30),
             "no heading over Zenoh"
         );
-        let st = &mut state[0];
-        pubs[0].send(moving_sample(st.next_send))?;
-        st.next_send += 1;
+        send(0, true)?;
         if let Some(h) = subs[0].recv_timeout(Duration::from_secs(5))? {
-            st.book(h.seq);
+            state[0].iceoryx2.book(h.seq, state[0].sent());
         }
         std::thread::sleep(Duration::from_millis(10));
     }
     std::thread::sleep(Duration::from_millis(200));
-    while let Some(h) = subs[0].try_recv()? {
-        state[0].book(h.seq);
-    }
-    let zenoh_base = zenoh_count.load(Relaxed);
+    drain(0)?;
+    // The pings answered before the subscription reached the target had nowhere to
+    // go over Zenoh; they are not losses.
+    state[0].zenoh.lost.store(0, Relaxed);
     let rss_connected = Rss::of(target.pid())?;
-    let answered_base: u64 = state.iter().map(|s| s.answered).sum();
 
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
@@ -162,67 +234,57 @@ pub fn measure(
         .collect::<Result<Vec<_>, _>>()
         .context("attach")?;
 
-    let top_up = |i: usize, st: &mut Source| -> anyhow::Result<()> {
-        let p = &pubs[i];
+    let top_up = |i: usize| -> anyhow::Result<()> {
         let mut any = false;
-        while st.in_flight() < opt.in_flight {
-            let s = moving_sample(st.next_send);
-            match opt.notify {
-                Notify::Sample => p.send(s)?,
-                Notify::Burst => p.publish(s)?,
-            }
-            st.next_send += 1;
+        while state[i].in_flight() < opt.in_flight {
+            send(i, opt.notify == Notify::Sample)?;
             any = true;
         }
         if any && opt.notify == Notify::Burst {
-            p.notify()?;
+            pubs[i].notify()?;
         }
         Ok(())
     };
-    let drain = |i: usize, st: &mut Source| -> anyhow::Result<()> {
-        subs[i].drain_notifications()?;
-        while let Some(h) = subs[i].try_recv()? {
-            if h.heading_status() != Some(HeadingStatus::Stale) {
-                st.book(h.seq);
-            }
-        }
-        Ok(())
+    let answered = || {
+        state
+            .iter()
+            .map(|s| s.iceoryx2.answered.load(Relaxed))
+            .sum::<u64>()
     };
+    let outstanding = || state.iter().map(Source::in_flight).sum::<u64>();
 
     let start = Instant::now();
     let warm_end = start + opt.warmup;
     let end = warm_end + opt.window;
-    for (i, st) in state.iter_mut().enumerate() {
-        top_up(i, st)?;
-    }
-    let answered = |state: &[Source]| state.iter().map(|s| s.answered).sum::<u64>();
     let mut window_start: Option<(Instant, u64, Duration, Duration)> = None;
     let mut window_end: Option<(Instant, u64, Duration, Duration)> = None;
     let mut fired = Vec::with_capacity(sources.len());
     let mut last_progress = Instant::now();
+    let mut progress_seen = (0, 0);
     loop {
         let now = Instant::now();
-        let snapshot = |state: &[Source]| -> anyhow::Result<_> {
+        let snapshot = || -> anyhow::Result<_> {
             Ok((
                 Instant::now(),
-                answered(state),
+                answered(),
                 cpu_time(target.pid())?,
                 cpu_time(std::process::id())?,
             ))
         };
         if window_start.is_none() && now >= warm_end {
-            window_start = Some(snapshot(&state)?);
+            window_start = Some(snapshot()?);
         }
         if window_end.is_none() && now >= end {
-            window_end = Some(snapshot(&state)?);
+            window_end = Some(snapshot()?);
         }
-        let outstanding: u64 = state.iter().map(Source::in_flight).sum();
         if window_end.is_some()
-            && (outstanding == 0 || last_progress.elapsed() > Duration::from_secs(10))
+            && (outstanding() == 0 || last_progress.elapsed() > Duration::from_secs(10))
         {
             break;
         }
-        let before = answered(&state);
+        // Zenoh answers come on Zenoh's threads and wake nobody here: the short
+        // timeout tops up a source held back by its Zenoh answers soon after they
+        // arrive, even when no iceoryx2 answer does.
         waitset
             .wait_and_process_once_with_timeout(
                 |id: WaitSetAttachmentId<ipc::Service>| {
@@ -231,49 +293,48 @@ pub fn measure(
                     }
                     CallbackProgression::Continue
                 },
-                Duration::from_millis(50),
+                Duration::from_millis(1),
             )
             .map_err(|e| anyhow::anyhow!("WaitSet: {e:?}"))?;
         for i in fired.drain(..) {
-            drain(i, &mut state[i])?;
-            if window_end.is_none() {
-                top_up(i, &mut state[i])?;
+            drain(i)?;
+        }
+        if window_end.is_none() {
+            for i in 0..state.len() {
+                top_up(i)?;
             }
         }
-        if answered(&state) > before {
+        let zenoh_answered: u64 = state.iter().map(|s| s.zenoh.answered.load(Relaxed)).sum();
+        let seen = (answered(), zenoh_answered);
+        if seen != progress_seen {
+            progress_seen = seen;
             last_progress = Instant::now();
         } else if last_progress.elapsed() > Duration::from_secs(1) {
             // Nothing for a second: a lost wake-up or a stuck target. Look at every
             // source once (cheap) and make sure the target is alive.
             target.check_running()?;
-            for (i, st) in state.iter_mut().enumerate() {
-                drain(i, st)?;
-                if window_end.is_none() {
-                    top_up(i, st)?;
-                }
+            for i in 0..state.len() {
+                drain(i)?;
             }
         }
     }
     let rss_after_load = Rss::of(target.pid())?;
-    // Let the last Zenoh headings arrive.
-    std::thread::sleep(Duration::from_millis(300));
     let (Some(ws), Some(we)) = (window_start, window_end) else {
         anyhow::bail!("the measurement window never started");
     };
     let window = we.0 - ws.0;
     let secs = window.as_secs_f64();
-    let total = |f: fn(&Source) -> u64| state.iter().map(f).sum::<u64>();
-    let outstanding = total(Source::in_flight);
+    let (mut iceoryx2, mut zenoh) = (Losses::default(), Losses::default());
+    for s in state.iter() {
+        s.iceoryx2.add_to(&mut iceoryx2, s.sent());
+        s.zenoh.add_to(&mut zenoh, s.sent());
+    }
     Ok(ThroughputRun {
         rate: (we.1 - ws.1) as f64 / secs,
         window,
-        sent: total(|s| s.next_send),
-        answered: total(|s| s.answered),
-        lost: total(|s| s.lost) + outstanding,
-        duplicates: total(|s| s.duplicates),
-        unexpected: total(|s| s.unexpected),
-        zenoh_received: zenoh_count.load(Relaxed) - zenoh_base,
-        zenoh_expected: total(|s| s.answered) - answered_base,
+        sent: state.iter().map(Source::sent).sum(),
+        iceoryx2,
+        zenoh,
         target_cores: (we.2 - ws.2).as_secs_f64() / secs,
         driver_cores: (we.3 - ws.3).as_secs_f64() / secs,
         rss_connected,
