@@ -7,7 +7,8 @@
 //!   [`config::Cli`] (clap flags overriding it); validation with one-line errors that
 //!   name the key.
 //! - [`answer`] — per-sample logic without IPC: input checks, sequence and timestamp
-//!   bookkeeping ([`Counters`]), the model call, mapping to the wire status.
+//!   bookkeeping ([`Counters`]), the model call (one sample, or a drain of many with
+//!   one batched call: `Tracker::answer_batch`), mapping to the wire status.
 //! - `lock` (private) — one ghnetd per service prefix and iceoryx2 namespace: an
 //!   exclusive lock file holding the pid, released by the kernel when its holder
 //!   dies (so `kill -9` leaves nothing to clean up).
@@ -36,9 +37,9 @@
 //! served as before. A second ghnetd for the same service prefix in the same
 //! iceoryx2 namespace exits with an error naming the first one's pid. The
 //! per-sample path allocates nothing of its own: ports and model scratch are made
-//! once per source / once per daemon (`tests/no_alloc.rs` counts). iceoryx2 0.10
-//! itself allocates one small object per loaned sample and a short list per WaitSet
-//! wake-up; neither grows with load.
+//! once per source / once per daemon (`tests/no_alloc.rs` counts). The libraries
+//! allocate on it: iceoryx2 0.10 one small object per loaned sample and two short
+//! lists per WaitSet wake-up, Zenoh one buffer per `put`; none grows with load.
 //!
 //! # Signals and shutdown
 //!

@@ -17,13 +17,12 @@ use anyhow::Context;
 use ghnet_client::iceoryx2::prelude::*;
 use ghnet_client::iceoryx2::service::static_config::messaging_pattern::MessagingPattern as PatternConfig;
 use ghnet_client::{
-    HeadingEstimate, HeadingPublisher, IpcConfig, VelocitySample, VelocitySubscriber,
-    SERVICE_SETTINGS,
+    HeadingEstimate, HeadingPublisher, IpcConfig, VelocitySubscriber, SERVICE_SETTINGS,
 };
-use ghnet_models::{Model, Prediction, Predictor};
+use ghnet_models::{Model, Predictor};
 use tracing::{debug, info, warn};
 
-use crate::answer::{stale_message, Counters, Limits, ModelTag, Tracker};
+use crate::answer::{stale_message, Batch, Counters, Limits, ModelTag, Tracker};
 use crate::config::Config;
 use crate::output::{Burst, HeadingOutput};
 use crate::remote::{LatencyRing, ZenohSide};
@@ -97,32 +96,6 @@ const BATCH: usize = SERVICE_SETTINGS.subscriber_buffer_size;
 /// this many on, `predict_batch_with_accuracy` costs less in total (measured with
 /// `perf`: per sample about half of `forward_one` from 4 on).
 const BATCH_MIN: usize = 4;
-
-/// Scratch of the batch path, made once per daemon so answering allocates nothing.
-/// Samples are taken from the subscriber first, booked in order, run through the
-/// model in one call, then answered and published in order.
-struct Batch {
-    samples: Vec<VelocitySample>,
-    /// Per sample: does the model see it (else `InvalidInput` without prediction).
-    to_model: Vec<bool>,
-    v_north: Vec<f32>,
-    v_east: Vec<f32>,
-    speed_acc: Vec<f32>,
-    predictions: Vec<Prediction>,
-}
-
-impl Batch {
-    fn new() -> Self {
-        Self {
-            samples: Vec::with_capacity(BATCH),
-            to_model: vec![false; BATCH],
-            v_north: vec![0.0; BATCH],
-            v_east: vec![0.0; BATCH],
-            speed_acc: vec![0.0; BATCH],
-            predictions: vec![Prediction::INVALID; BATCH],
-        }
-    }
-}
 
 /// What a housekeeping pass wants changed.
 #[derive(Default)]
@@ -238,7 +211,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         name: HeadingEstimate::encode_model_name(model.name()),
     };
     let predictor = Predictor::new(model.clone()).with_policy(config.status_policy());
-    let batch = Batch::new();
+    let batch = Batch::new(BATCH);
     let zenoh = if config.zenoh.enabled {
         let model_json =
             serde_json::to_string(model.meta()).context("cannot serialise the model metadata")?;
@@ -447,34 +420,12 @@ fn serve(
                 answered_any |= deliver(ports, state, answer, t, Burst::of(i, n));
             }
         } else {
-            // Book in arrival order, one model call for every sample that needs it,
-            // then answer in order. Each answer's processing time runs from the
-            // start of the batch (its wait for the samples before it included).
-            let mut m = 0;
-            for (i, s) in batch.samples.iter().enumerate() {
-                let to_model = state.tracker.book(s, limits);
-                batch.to_model[i] = to_model;
-                if to_model {
-                    batch.v_north[m] = s.v_north;
-                    batch.v_east[m] = s.v_east;
-                    batch.speed_acc[m] = s.speed_accuracy;
-                    m += 1;
-                }
-            }
-            predictor.predict_batch_with_accuracy(
-                &batch.v_north[..m],
-                &batch.v_east[..m],
-                &batch.speed_acc[..m],
-                &mut batch.predictions[..m],
-            );
-            let mut k = 0;
-            for i in 0..n {
-                let prediction = batch.to_model[i].then(|| {
-                    k += 1;
-                    batch.predictions[k - 1]
-                });
-                let answer = state.tracker.finish(&batch.samples[i], prediction, tag);
-                answered_any |= deliver(ports, state, answer, t0, Burst::of(i, n));
+            // One model call for the whole drain, then answer in order. Each
+            // answer's processing time runs from the start of the batch (its wait for
+            // the samples before it included).
+            state.tracker.answer_batch(batch, predictor, limits, tag);
+            for (i, answer) in batch.answers.iter().enumerate() {
+                answered_any |= deliver(ports, state, *answer, t0, Burst::of(i, n));
             }
         }
         if n < BATCH {

@@ -9,7 +9,7 @@ use ghnet_client::testing::TestNamespace;
 use ghnet_client::{
     HeadingEstimate, HeadingPublisher, VelocityPublisher, VelocitySample, VelocitySubscriber,
 };
-use ghnetd::answer::{Limits, ModelTag, Tracker};
+use ghnetd::answer::{Batch, Limits, ModelTag, Tracker};
 
 struct Counting;
 
@@ -137,9 +137,9 @@ fn receive_answer_publish_allocates_nothing() {
     );
 }
 
-/// The batch path ghnetd takes when a source has several samples buffered (see
-/// `serve` in daemon/src/serve.rs): receive all, book each in order, one
-/// `predict_batch_with_accuracy`, then finish and publish each. Only iceoryx2's own
+/// The batch path ghnetd takes when a source has several samples buffered (`serve`
+/// in daemon/src/serve.rs calls the same `Tracker::answer_batch` with the same kind
+/// of scratch): receive all, one model call, then publish each. Only iceoryx2's own
 /// per-loan object may allocate.
 #[test]
 fn batch_path_allocates_nothing() {
@@ -156,10 +156,7 @@ fn batch_path_allocates_nothing() {
 
     // The daemon's scratch, made once.
     const N: usize = 64;
-    let mut samples: Vec<VelocitySample> = Vec::with_capacity(N);
-    let mut to_model = [false; N];
-    let (mut vn, mut ve, mut acc) = ([0f32; N], [0f32; N], [0f32; N]);
-    let mut predictions = vec![ghnet_models::Prediction::INVALID; N];
+    let mut batch = Batch::new(N);
 
     let mut ours = 0;
     let mut publishes = 0;
@@ -177,41 +174,20 @@ fn batch_path_allocates_nothing() {
                 .unwrap();
         }
         gnss.notify().unwrap();
-        let mut answers = [None; N];
         // Round 0 is the warm-up (iceoryx2 connects ports lazily on first use).
         let counted = allocations(|| {
             velocity.drain_notifications().unwrap();
-            samples.clear();
+            batch.samples.clear();
             while let Some(s) = velocity.try_recv().unwrap() {
-                samples.push(s);
+                batch.samples.push(s);
             }
-            assert_eq!(samples.len(), N);
-            let mut m = 0;
-            for (i, s) in samples.iter().enumerate() {
-                to_model[i] = tracker.book(s, &limits);
-                if to_model[i] {
-                    (vn[m], ve[m], acc[m]) = (s.v_north, s.v_east, s.speed_accuracy);
-                    m += 1;
-                }
-            }
-            predictor.predict_batch_with_accuracy(
-                &vn[..m],
-                &ve[..m],
-                &acc[..m],
-                &mut predictions[..m],
-            );
-            let mut k = 0;
-            for (i, s) in samples.iter().enumerate() {
-                let p = to_model[i].then(|| {
-                    k += 1;
-                    predictions[k - 1]
-                });
-                answers[i] = Some(tracker.finish(s, p, &tag));
-            }
+            assert_eq!(batch.samples.len(), N);
+            tracker.answer_batch(&mut batch, &mut predictor, &limits, &tag);
         });
+        assert_eq!(batch.answers.len(), N);
         let mut published = 0;
-        for a in answers {
-            published += allocations(|| heading.publish(a.unwrap()).unwrap());
+        for a in &batch.answers {
+            published += allocations(|| heading.publish(*a).unwrap());
         }
         let notified = allocations(|| heading.notify().unwrap());
         if round > 0 {
