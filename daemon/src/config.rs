@@ -302,8 +302,8 @@ fn json_list(items: &[String]) -> String {
     long_about = "ghnet heading sidecar: reads VelocitySample from <prefix>/<source>/velocity \
                   and answers each with one HeadingEstimate on <prefix>/<source>/heading.\n\n\
                   Precedence: built-in defaults < --config file < flags. Logging: RUST_LOG \
-                  (default info). SIGINT/SIGTERM: answer what is buffered, release iceoryx2 \
-                  resources, exit 0."
+                  (default info, Zenoh's gossip-disabled warning off). SIGINT/SIGTERM: \
+                  answer what is buffered, release iceoryx2 resources, exit 0."
 )]
 pub struct Cli {
     /// TOML config file; without one the built-in defaults apply.

@@ -20,6 +20,9 @@ fn on_signal(_: FetchableSignal) {
     }
 }
 
+/// The log filter without `RUST_LOG`: see `main`.
+const DEFAULT_LOG: &str = "info,zenoh::net::routing::hat::peer=error";
+
 fn main() -> ExitCode {
     // iceoryx2 logs through its own multi-line console logger; ghnetd reports every
     // failure that matters itself, so keep iceoryx2 to errors unless IOX2_LOG_LEVEL
@@ -50,13 +53,15 @@ fn main() -> ExitCode {
         libc::umask(0o077);
     }
 
-    // Logs go to stderr (stdout stays clean for --print-config and pipes).
+    // Logs go to stderr (stdout stays clean for --print-config and pipes). Without
+    // RUST_LOG: info, except Zenoh's peer routing, which warns at every start that
+    // gossip is disabled, as ghnetd configures it on purpose (no scouting).
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
         .with_ansi(std::io::stderr().is_terminal())
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(DEFAULT_LOG)),
         )
         .init();
     // ghnetd owns the signals. Registering through iceoryx2's SignalHandler (not
