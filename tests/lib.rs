@@ -387,8 +387,9 @@ impl Daemon {
         if let Some(name) = test_model().flag {
             cmd.args(["--model", name]);
         }
+        // ghnetd's default log filter (info), whatever RUST_LOG the test runs with.
         cmd.args(extra)
-            .env("RUST_LOG", "info")
+            .env_remove("RUST_LOG")
             .env_remove("GHNETD_CONFIG")
             .stdin(Stdio::null())
             .stdout(Stdio::null())

@@ -899,8 +899,9 @@ impl SpawnedGhnetd {
         for s in sources {
             cmd.args(["--source", s]);
         }
-        // The Zenoh endpoint is read from the info-level start line.
-        cmd.env("RUST_LOG", "info")
+        // The Zenoh endpoint is read from the info-level start line: ghnetd's
+        // default log filter, whatever RUST_LOG the caller has.
+        cmd.env_remove("RUST_LOG")
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::piped());

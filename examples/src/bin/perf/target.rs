@@ -108,7 +108,7 @@ impl Target {
                     .arg("--iceoryx2-root-path")
                     .arg(ns.root_path())
                     .env_remove("GHNETD_CONFIG")
-                    .env("RUST_LOG", "info");
+                    .env_remove("RUST_LOG"); // ghnetd's default: info
                 c
             }
             Kind::Echo => {
