@@ -191,17 +191,22 @@ impl Tracker {
 }
 
 /// Scratch of the batch path, made once (per daemon) so answering a batch allocates
-/// nothing: the caller fills [`samples`](Self::samples) (up to the capacity given to
-/// [`Batch::new`]), [`Tracker::answer_batch`] leaves the answers in
-/// [`answers`](Self::answers), in the same order.
+/// nothing. The caller fills [`samples`](Self::samples) (up to the capacity given to
+/// [`Batch::new`]); then either [`Tracker::answer_batch`] answers them all for one
+/// source, or, for samples of several sources, the caller goes through the three
+/// steps itself with each sample's own tracker: [`book`](Self::book) every sample in
+/// order, one [`predict`](Self::predict), [`finish`](Self::finish) every sample.
 #[derive(Debug)]
 pub struct Batch {
-    /// The samples to answer, in arrival order.
+    /// The samples to answer, in arrival order per source.
     pub samples: Vec<VelocitySample>,
     /// One answer per sample after [`Tracker::answer_batch`].
     pub answers: Vec<HeadingEstimate>,
-    /// Per sample: does the model see it (else `InvalidInput` without prediction).
-    to_model: Vec<bool>,
+    /// Per sample: its row in the model inputs, or [`Self::NO_MODEL`] (answered
+    /// `InvalidInput` without a prediction).
+    row: Vec<u32>,
+    /// Rows used in the model inputs.
+    rows: usize,
     v_north: Vec<f32>,
     v_east: Vec<f32>,
     speed_acc: Vec<f32>,
@@ -209,28 +214,77 @@ pub struct Batch {
 }
 
 impl Batch {
+    const NO_MODEL: u32 = u32::MAX;
+
     /// Scratch for batches of up to `capacity` samples.
     pub fn new(capacity: usize) -> Self {
         Self {
             samples: Vec::with_capacity(capacity),
             answers: Vec::with_capacity(capacity),
-            to_model: vec![false; capacity],
+            row: vec![Self::NO_MODEL; capacity],
+            rows: 0,
             v_north: vec![0.0; capacity],
             v_east: vec![0.0; capacity],
             speed_acc: vec![0.0; capacity],
             predictions: vec![Prediction::INVALID; capacity],
         }
     }
+
+    /// The most samples one batch takes.
+    pub fn capacity(&self) -> usize {
+        self.row.len()
+    }
+
+    /// Step 1: books `samples[i]` on its source's `tracker` (see [`Tracker::book`])
+    /// and, if the model may see it, adds it to the model inputs. Call for `i = 0, 1,
+    /// ...` in order; `i = 0` starts a new batch.
+    ///
+    /// # Panics
+    /// If `i` is not below the capacity or `samples[i]` does not exist.
+    pub fn book(&mut self, i: usize, tracker: &mut Tracker, limits: &Limits) {
+        if i == 0 {
+            self.rows = 0;
+        }
+        let s = &self.samples[i];
+        self.row[i] = if tracker.book(s, limits) {
+            let r = self.rows;
+            (self.v_north[r], self.v_east[r], self.speed_acc[r]) =
+                (s.v_north, s.v_east, s.speed_accuracy);
+            self.rows += 1;
+            r as u32
+        } else {
+            Self::NO_MODEL
+        };
+    }
+
+    /// Step 2: one model call for every booked sample the model may see.
+    pub fn predict(&mut self, predictor: &mut Predictor) {
+        let r = self.rows;
+        predictor.predict_batch_with_accuracy(
+            &self.v_north[..r],
+            &self.v_east[..r],
+            &self.speed_acc[..r],
+            &mut self.predictions[..r],
+        );
+    }
+
+    /// Step 3: the answer to `samples[i]`, from the tracker it was booked on (see
+    /// [`Tracker::finish`]). `processing_ns` is left at 0.
+    pub fn finish(&self, i: usize, tracker: &mut Tracker, tag: &ModelTag) -> HeadingEstimate {
+        let row = self.row[i];
+        let prediction = (row != Self::NO_MODEL).then(|| self.predictions[row as usize]);
+        tracker.finish(&self.samples[i], prediction, tag)
+    }
 }
 
 impl Tracker {
-    /// [`answer`](Self::answer) for every sample in `batch.samples` with ONE model
-    /// call (`Predictor::predict_batch_with_accuracy` costs about half per sample from
-    /// 4 samples on): books each in arrival order, runs the model on those it may
-    /// see, then finishes each; the answers land in `batch.answers`.
+    /// [`answer`](Self::answer) for every sample in `batch.samples` (all of this
+    /// source) with ONE model call (`Predictor::predict_batch_with_accuracy` costs
+    /// about half per sample from 4 samples on); the answers land in
+    /// `batch.answers`, in order.
     ///
     /// # Panics
-    /// If `batch.samples` holds more than the capacity the batch was made with.
+    /// If `batch.samples` holds more than the batch's capacity.
     pub fn answer_batch(
         &mut self,
         batch: &mut Batch,
@@ -239,32 +293,17 @@ impl Tracker {
         tag: &ModelTag,
     ) {
         let n = batch.samples.len();
-        assert!(n <= batch.to_model.len(), "batch over its capacity");
-        let mut m = 0;
-        for (i, s) in batch.samples.iter().enumerate() {
-            let to_model = self.book(s, limits);
-            batch.to_model[i] = to_model;
-            if to_model {
-                batch.v_north[m] = s.v_north;
-                batch.v_east[m] = s.v_east;
-                batch.speed_acc[m] = s.speed_accuracy;
-                m += 1;
-            }
-        }
-        predictor.predict_batch_with_accuracy(
-            &batch.v_north[..m],
-            &batch.v_east[..m],
-            &batch.speed_acc[..m],
-            &mut batch.predictions[..m],
-        );
         batch.answers.clear();
-        let mut k = 0;
-        for (i, s) in batch.samples.iter().enumerate() {
-            let prediction = batch.to_model[i].then(|| {
-                k += 1;
-                batch.predictions[k - 1]
-            });
-            batch.answers.push(self.finish(s, prediction, tag));
+        if n == 0 {
+            return;
+        }
+        for i in 0..n {
+            batch.book(i, self, limits);
+        }
+        batch.predict(predictor);
+        for i in 0..n {
+            let answer = batch.finish(i, self, tag);
+            batch.answers.push(answer);
         }
     }
 }

@@ -222,7 +222,7 @@ impl Default for ZenohSection {
 /// ghnetd's Zenoh transmit queue when no `zenoh.config_file` is given (JSON5 values
 /// by config path; a config file replaces them).
 ///
-/// The heading publishers drop on congestion, and the last heading of each drain is
+/// The heading publishers drop on congestion, and the last heading of each round is
 /// `express` (it sends its batch at once), so 100 sources answering one sample each
 /// take 100 batches. Zenoh's default queue (2 batches, drop after 1 ms) lost 18% of
 /// such a burst on a loaded 2-core machine (tests/tests/soak.rs). 16 batches, and up

@@ -7,8 +7,9 @@
 //!   [`config::Cli`] (clap flags overriding it); validation with one-line errors that
 //!   name the key.
 //! - [`answer`] — per-sample logic without IPC: input checks, sequence and timestamp
-//!   bookkeeping ([`Counters`]), the model call (one sample, or a drain of many with
-//!   one batched call: `Tracker::answer_batch`), mapping to the wire status.
+//!   bookkeeping ([`Counters`]), the model call (one sample, or many, possibly of
+//!   several sources, with one batched call: [`answer::Batch`]), mapping to the wire
+//!   status.
 //! - `lock` (private) — one ghnetd per service prefix and iceoryx2 namespace: an
 //!   exclusive lock file holding the pid, released by the kernel when its holder
 //!   dies (so `kill -9` leaves nothing to clean up).

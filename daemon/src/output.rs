@@ -4,8 +4,9 @@
 
 use ghnet_client::{HeadingEstimate, HeadingPublisher, SendError};
 
-/// Where an answer stands in one drain of a source (the answers of one wake-up,
-/// published back to back, then [`HeadingOutput::flush`]).
+/// Where an answer stands in one round of the loop (up to 128 answers of the sources
+/// that woke together, published back to back, then [`HeadingOutput::flush`] per
+/// source).
 ///
 /// An output that pays per message sent (Zenoh: a TCP segment and a thread wake-up
 /// each) batches the answers followed by more and sends at the last one, so a burst
@@ -13,14 +14,14 @@ use ghnet_client::{HeadingEstimate, HeadingPublisher, SendError};
 /// at once, as before.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Burst {
-    /// More answers of this drain follow before `flush`.
+    /// More answers of this round follow.
     More,
-    /// The last answer of the drain (or the only one).
+    /// The last answer of the round (or the only one).
     Last,
 }
 
 impl Burst {
-    /// The position of answer `i` of `n` in a drain.
+    /// The position of answer `i` of `n` in a round.
     pub(crate) fn of(i: usize, n: usize) -> Self {
         if i + 1 < n {
             Self::More
@@ -35,7 +36,7 @@ impl Burst {
 pub(crate) trait HeadingOutput {
     /// Short name for logs, e.g. `iceoryx2`.
     fn kind(&self) -> &'static str;
-    /// Delivers one answer; `burst` says whether more of the same drain follow.
+    /// Delivers one answer; `burst` says whether more of the same round follow.
     fn publish(&self, answer: &HeadingEstimate, burst: Burst) -> Result<(), OutputError>;
     /// Called once after a batch of answers (one wake-up's worth), e.g. to wake
     /// listeners once instead of per answer.
@@ -59,7 +60,7 @@ impl HeadingOutput for HeadingPublisher {
         "iceoryx2"
     }
 
-    /// Shared memory costs nothing per message to send; the one wake-up per drain
+    /// Shared memory costs nothing per message to send; the one wake-up per round
     /// is `flush`.
     fn publish(&self, answer: &HeadingEstimate, _: Burst) -> Result<(), OutputError> {
         Ok(HeadingPublisher::publish(self, *answer)?)
@@ -75,7 +76,7 @@ mod tests {
     use super::Burst;
 
     #[test]
-    fn only_the_last_answer_of_a_drain_is_last() {
+    fn only_the_last_answer_of_a_round_is_last() {
         assert_eq!(Burst::of(0, 1), Burst::Last);
         let three: Vec<_> = (0..3).map(|i| Burst::of(i, 3)).collect();
         assert_eq!(three, [Burst::More, Burst::More, Burst::Last]);

@@ -15,10 +15,11 @@
 //! (visible as gaps in `seq`) instead.
 //!
 //! Each source has two publishers on its heading key, the same but for `express`: the
-//! answers of one drain but the last are put on the batching one (Zenoh appends them
-//! to its current batch), the last on the express one, which sends that batch at once.
+//! answers of one round (the samples of the sources that woke together) but the last
+//! are put on the batching ones (Zenoh appends them to its current batch, whatever the
+//! key), the last on its source's express one, which sends that batch at once.
 //! So a lone heading (one sample in flight, the normal case) leaves at once, and a
-//! drain of 64 costs one TCP send and one wake-up of Zenoh's transmit thread instead
+//! round of 64 costs one TCP send and one wake-up of Zenoh's transmit thread instead
 //! of 64. With every heading express, that per-message cost (in ghnetd and in every
 //! subscriber) held 100 sources to about 50,000 headings/s on 2 cores; see the
 //! README's Performance section.
@@ -339,9 +340,9 @@ fn resolve_port_zero(endpoint: &str) -> anyhow::Result<String> {
 
 /// One source's Zenoh heading publisher.
 pub(crate) struct ZenohOutput {
-    /// For answers followed by more of the same drain: appended to Zenoh's batch.
+    /// For answers followed by more of the same round: appended to Zenoh's batch.
     batched: zenoh::pubsub::Publisher<'static>,
-    /// For the last answer of a drain: sends the batch, this answer included, now.
+    /// For the last answer of a round: sends the batch, this answer included, now.
     express: zenoh::pubsub::Publisher<'static>,
 }
 

@@ -8,6 +8,10 @@
 //! housekeeping finds a change, the scope ends, the change is applied, and the
 //! attachments are made again (rare, and nothing is lost: pending notifications stay
 //! in the listeners).
+//!
+//! A wait collects the sources whose listeners fired; they are then served together
+//! in rounds of up to [`BATCH`] samples (`Daemon::serve_round`), so receivers on one
+//! epoch share a model call and a Zenoh network batch.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
@@ -87,8 +91,8 @@ impl State {
     }
 }
 
-/// Most samples answered with one model call: a full subscriber buffer, so one
-/// drain of a source that fell behind is one call.
+/// Most samples answered in one round (one model call): a full subscriber buffer,
+/// so one source that fell behind is one call, and 128 receivers on one epoch too.
 const BATCH: usize = SERVICE_SETTINGS.subscriber_buffer_size;
 
 /// Fewest buffered samples that go through the batch path. One sample (the normal
@@ -96,6 +100,29 @@ const BATCH: usize = SERVICE_SETTINGS.subscriber_buffer_size;
 /// this many on, `predict_batch_with_accuracy` costs less in total (measured with
 /// `perf`: per sample about half of `forward_one` from 4 on).
 const BATCH_MIN: usize = 4;
+
+/// Per wake-up scratch of [`Daemon::serve_round`], sized when the attachments are
+/// made so that a wake-up allocates nothing.
+#[derive(Default)]
+struct Wake {
+    /// Sources whose listener fired in this wait.
+    fired: Vec<usize>,
+    /// Per sample in the daemon's [`Batch`]: its source.
+    owner: Vec<usize>,
+    /// Fired sources with more samples than fitted in the batch.
+    more: Vec<usize>,
+    /// Per source: answered something in this wake-up (so flush its outputs).
+    answered: Vec<bool>,
+}
+
+impl Wake {
+    fn size_for(&mut self, sources: usize) {
+        self.fired = Vec::with_capacity(sources);
+        self.owner = Vec::with_capacity(BATCH);
+        self.more = Vec::with_capacity(sources);
+        self.answered = vec![false; sources];
+    }
+}
 
 /// What a housekeeping pass wants changed.
 #[derive(Default)]
@@ -118,6 +145,7 @@ struct Daemon {
     node: Node<ipc::Service>,
     predictor: Predictor,
     batch: Batch,
+    wake: Wake,
     limits: Limits,
     tag: ModelTag,
     /// Counters of sources that were dropped, kept for the final stats and resumed
@@ -265,6 +293,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         node,
         predictor,
         batch,
+        wake: Wake::default(),
         tag,
         retired: BTreeMap::new(),
         rejected: BTreeSet::new(),
@@ -301,24 +330,28 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
                 .map(|p| waitset.attach_notification(p.velocity.listener()))
                 .collect::<Result<Vec<_>, _>>()
                 .context("cannot attach a source listener to the WaitSet")?;
+            d.wake.size_for(ports.len());
             // Samples that arrived before a listener was attached (or before it
             // existed) have no pending wake-up; answer them now.
-            for (p, s) in ports.iter().zip(states.iter_mut()) {
-                d.serve(p, s);
+            for i in 0..ports.len() {
+                d.serve_one(i, &ports, &mut states);
             }
             loop {
                 let mut tick_due = false;
+                let fired = &mut d.wake.fired;
+                fired.clear();
                 let on_event = |id: WaitSetAttachmentId<ipc::Service>| {
                     if id.has_event_from(&tick) {
                         tick_due = true;
                     } else if let Some(i) = guards.iter().position(|g| id.has_event_from(g)) {
-                        d.serve(&ports[i], &mut states[i]);
+                        fired.push(i);
                     }
                     CallbackProgression::Continue
                 };
                 waitset
                     .wait_and_process_once_with_timeout(on_event, SHUTDOWN_POLL)
                     .context("WaitSet failed")?;
+                d.serve_fired(&ports, &mut states);
                 if shutdown.is_requested() {
                     break 'outer;
                 }
@@ -336,8 +369,8 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
     // Answer what is already buffered, then drop ports before the node (releasing
     // the iceoryx2 resources in order).
     info!("shutdown requested: answering buffered samples");
-    for (p, s) in ports.iter().zip(states.iter_mut()) {
-        d.serve(p, s);
+    for i in 0..ports.len() {
+        d.serve_one(i, &ports, &mut states);
     }
     let stats = d.stats(&ports, &states);
     d.log_stats(&ports, &states);
@@ -375,63 +408,9 @@ fn restrict_global_segment(iox: &ghnet_client::iceoryx2::config::Config) {
     }
 }
 
-/// Drains one source: consume the wake-up notifications first (or the WaitSet fires
-/// again at once), then answer every buffered sample, then notify once for the
-/// whole batch. Takes up to [`BATCH`] samples at a time: a single one is answered
-/// on the one-sample path (lowest latency), [`BATCH_MIN`] or more with one model
-/// call (a source that fell behind catches up at about twice the rate). Allocates
-/// nothing.
-fn serve(
-    ports: &Ports,
-    state: &mut State,
-    predictor: &mut Predictor,
-    batch: &mut Batch,
-    limits: &Limits,
-    tag: &ModelTag,
-    zenoh: Option<&ZenohSide>,
-) {
-    if let Err(e) = ports.velocity.drain_notifications() {
-        debug!(source = %ports.name, error = %e, "draining notifications failed");
-    }
-    let mut answered_any = false;
-    loop {
-        batch.samples.clear();
-        while batch.samples.len() < BATCH {
-            match ports.velocity.try_recv() {
-                Ok(Some(s)) => batch.samples.push(s),
-                Ok(None) => break,
-                Err(e) => {
-                    warn!(source = %ports.name, error = %e, "receiving failed");
-                    break;
-                }
-            }
-        }
-        let n = batch.samples.len();
-        if n == 0 {
-            break;
-        }
-        let t0 = Instant::now();
-        if n < BATCH_MIN {
-            for i in 0..n {
-                let t = Instant::now();
-                let answer = state
-                    .tracker
-                    .answer(&batch.samples[i], predictor, limits, tag);
-                answered_any |= deliver(ports, state, answer, t, Burst::of(i, n));
-            }
-        } else {
-            // One model call for the whole drain, then answer in order. Each
-            // answer's processing time runs from the start of the batch (its wait for
-            // the samples before it included).
-            state.tracker.answer_batch(batch, predictor, limits, tag);
-            for (i, answer) in batch.answers.iter().enumerate() {
-                answered_any |= deliver(ports, state, *answer, t0, Burst::of(i, n));
-            }
-        }
-        if n < BATCH {
-            break;
-        }
-    }
+/// Ends a source's part of a wake-up: wakes its iceoryx2 listeners once for all its
+/// answers (`flush`, if it answered any) and refreshes its Zenoh stats snapshot.
+fn settle(ports: &Ports, state: &State, answered_any: bool, zenoh: Option<&ZenohSide>) {
     if answered_any {
         for out in &ports.outputs {
             if let Err(e) = out.flush() {
@@ -481,17 +460,93 @@ fn deliver(
 }
 
 impl Daemon {
-    /// Answers everything source `p` has buffered (see the free [`serve`]).
-    fn serve(&mut self, p: &Ports, s: &mut State) {
-        serve(
-            p,
-            s,
-            &mut self.predictor,
-            &mut self.batch,
-            &self.limits,
-            &self.tag,
-            self.zenoh.as_ref(),
-        );
+    /// Answers everything source `i` has buffered.
+    fn serve_one(&mut self, i: usize, ports: &[Ports], states: &mut [State]) {
+        self.wake.fired.clear();
+        self.wake.fired.push(i);
+        self.serve_fired(ports, states);
+    }
+
+    /// Answers everything the sources in `wake.fired` (those whose listeners fired
+    /// in the last wait) have buffered, in rounds of up to [`BATCH`] samples.
+    fn serve_fired(&mut self, ports: &[Ports], states: &mut [State]) {
+        while !self.wake.fired.is_empty() {
+            self.serve_round(ports, states);
+            // Sources with more than fitted go again.
+            std::mem::swap(&mut self.wake.fired, &mut self.wake.more);
+        }
+    }
+
+    /// One round over the sources in `wake.fired`: consume their wake-up
+    /// notifications first (or the WaitSet fires again at once), take their
+    /// buffered samples in order, up to [`BATCH`] in all, answer them, then notify
+    /// each source's listeners once. Fewer than [`BATCH_MIN`] samples (the normal
+    /// case: one source, one sample in flight) take the one-sample path, the lowest
+    /// latency; more go through the model in one call, whether they come from one
+    /// source that fell behind or from many that woke together (receivers on one
+    /// epoch), and over Zenoh as one network batch: only the round's last heading is
+    /// express. Sources with more samples than fitted are left in `wake.more`.
+    /// Allocates nothing.
+    fn serve_round(&mut self, ports: &[Ports], states: &mut [State]) {
+        let (batch, wake) = (&mut self.batch, &mut self.wake);
+        batch.samples.clear();
+        wake.owner.clear();
+        wake.more.clear();
+        for &f in &wake.fired {
+            let p = &ports[f];
+            if let Err(e) = p.velocity.drain_notifications() {
+                debug!(source = %p.name, error = %e, "draining notifications failed");
+            }
+            let mut exhausted = false;
+            while batch.samples.len() < batch.capacity() {
+                match p.velocity.try_recv() {
+                    Ok(Some(s)) => {
+                        batch.samples.push(s);
+                        wake.owner.push(f);
+                    }
+                    Ok(None) => {
+                        exhausted = true;
+                        break;
+                    }
+                    Err(e) => {
+                        warn!(source = %p.name, error = %e, "receiving failed");
+                        exhausted = true;
+                        break;
+                    }
+                }
+            }
+            if !exhausted {
+                wake.more.push(f);
+            }
+        }
+        let n = batch.samples.len();
+        let t0 = Instant::now();
+        if n < BATCH_MIN {
+            for i in 0..n {
+                let (t, f) = (Instant::now(), wake.owner[i]);
+                let answer = states[f].tracker.answer(
+                    &batch.samples[i],
+                    &mut self.predictor,
+                    &self.limits,
+                    &self.tag,
+                );
+                wake.answered[f] |= deliver(&ports[f], &mut states[f], answer, t, Burst::of(i, n));
+            }
+        } else {
+            for i in 0..n {
+                batch.book(i, &mut states[wake.owner[i]].tracker, &self.limits);
+            }
+            batch.predict(&mut self.predictor);
+            for i in 0..n {
+                let f = wake.owner[i];
+                let answer = batch.finish(i, &mut states[f].tracker, &self.tag);
+                wake.answered[f] |= deliver(&ports[f], &mut states[f], answer, t0, Burst::of(i, n));
+            }
+        }
+        for &f in &wake.fired {
+            let answered = std::mem::take(&mut wake.answered[f]);
+            settle(&ports[f], &states[f], answered, self.zenoh.as_ref());
+        }
     }
 
     fn open_source(&self, name: &str, is_static: bool) -> anyhow::Result<Ports> {

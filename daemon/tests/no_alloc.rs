@@ -137,10 +137,11 @@ fn receive_answer_publish_allocates_nothing() {
     );
 }
 
-/// The batch path ghnetd takes when a source has several samples buffered (`serve`
-/// in daemon/src/serve.rs calls the same `Tracker::answer_batch` with the same kind
-/// of scratch): receive all, one model call, then publish each. Only iceoryx2's own
-/// per-loan object may allocate.
+/// The batch path ghnetd takes when samples pile up (one source that fell behind,
+/// or many that woke together): receive all, `Batch::book` each, one
+/// `Batch::predict`, `Batch::finish` each (through `Tracker::answer_batch`, the same
+/// three steps `serve_round` in daemon/src/serve.rs takes with the same scratch),
+/// then publish each. Only iceoryx2's own per-loan object may allocate.
 #[test]
 fn batch_path_allocates_nothing() {
     let Fixture {

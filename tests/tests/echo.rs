@@ -101,3 +101,102 @@ fn heading_equals_in_process_model_and_echoes_seq_and_timestamp() {
         .is_none());
     drop(daemon);
 }
+
+/// Several sources with samples waiting when ghnetd wakes (receivers on one epoch,
+/// or a loop that fell behind): their samples are answered together, through one
+/// batched model call per round of up to 128, and each source must still get
+/// exactly its own answers, in order, equal to the in-process model's (up to the
+/// batch kernel's rounding), including the invalid and stationary ones.
+#[test]
+fn sources_waking_together_get_their_own_answers_in_order() {
+    let ns = Namespace::new();
+    let ipc = ns.ipc();
+    const SOURCES: usize = 5;
+    const PER_SOURCE: u64 = 60; // 300 in all: more than one round of 128
+    let names: Vec<String> = (0..SOURCES).map(|k| format!("burst{k}")).collect();
+    let mut args = vec!["--discovery", "false"];
+    for n in &names {
+        args.extend(["--source", n.as_str()]);
+    }
+    let daemon = Daemon::start(&ns, &args);
+    let subs: Vec<_> = names
+        .iter()
+        .map(|n| HeadingSubscriber::new(&ipc, n).unwrap())
+        .collect();
+    let pubs: Vec<_> = names
+        .iter()
+        .map(|n| VelocityPublisher::new(&ipc, n).unwrap())
+        .collect();
+    for p in &pubs {
+        daemon.wait_serving(p);
+    }
+
+    // Each source its own direction and speed, so an answer given to the wrong
+    // source would show; every 7th sample invalid, every 11th stationary.
+    let input = |k: usize, i: u64| -> (f32, f32) {
+        if i % 7 == 3 {
+            (f32::NAN, 1.0)
+        } else if i % 11 == 5 {
+            (0.0, 0.0)
+        } else {
+            let angle = (k as f32 * 72.0 + i as f32 * 0.5).to_radians();
+            let speed = 6.0 + k as f32 + (i % 5) as f32;
+            (speed * angle.cos(), speed * angle.sin())
+        }
+    };
+    // ghnetd stopped while the samples arrive: when it continues, every source's
+    // listener has fired and it sees them all in one wake-up.
+    let signal = |sig| assert_eq!(unsafe { libc::kill(daemon.pid() as i32, sig) }, 0);
+    signal(libc::SIGSTOP);
+    let t0 = now_ns();
+    for i in 0..PER_SOURCE {
+        for (k, p) in pubs.iter().enumerate() {
+            let (vn, ve) = input(k, i);
+            p.publish(VelocitySample::new(t0 + i, 1_000 + i, vn, ve, 0.0))
+                .unwrap();
+        }
+    }
+    for p in &pubs {
+        p.notify().unwrap();
+    }
+    signal(libc::SIGCONT);
+
+    let tm = test_model();
+    let mut predictor = Predictor::new(tm.model.clone()).with_policy(StatusPolicy::default());
+    for (k, sub) in subs.iter().enumerate() {
+        for i in 0..PER_SOURCE {
+            let h = sub.recv_timeout(WATCHDOG).unwrap().unwrap_or_else(|| {
+                panic!(
+                    "source {k}: no answer to sample {i}; log:\n{}",
+                    daemon.log()
+                )
+            });
+            assert_eq!(
+                h.seq,
+                1_000 + i,
+                "source {k}: answers in order, none missing"
+            );
+            let (vn, ve) = input(k, i);
+            let want = predictor.predict(vn, ve);
+            let ctx = format!("source {k} sample {i} ({vn}, {ve}): {h:?} vs {want:?}");
+            assert_eq!(h.heading_status(), Some(wire(want.status)), "{ctx}");
+            for (a, b) in [
+                (h.heading_deg, want.heading_deg),
+                (h.heading_std_deg, want.std_deg),
+            ] {
+                let d = (a - b).abs();
+                assert!(
+                    (a.is_nan() && b.is_nan()) || d < 1e-3 || (d - 360.0).abs() < 1e-3,
+                    "{ctx}"
+                );
+            }
+        }
+        assert!(
+            sub.recv_timeout(std::time::Duration::from_millis(100))
+                .unwrap()
+                .is_none(),
+            "source {k}: exactly one answer per sample"
+        );
+    }
+    drop(daemon);
+}
