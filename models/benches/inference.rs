@@ -25,20 +25,10 @@ use ghnet_models::gelu::gelu_inplace_with;
 use ghnet_models::simd::{peak_fma_loop, peak_loop_flops, Kernel};
 use ghnet_models::{Model, Prediction, Predictor};
 
-fn inputs(n: usize) -> (Vec<f32>, Vec<f32>) {
-    (0..n)
-        .map(|i| {
-            let a = i as f32 * 0.618;
-            let s = 0.05 + (i % 97) as f32 * 0.1;
-            (s * a.cos(), s * a.sin())
-        })
-        .unzip()
-}
-
 fn bench(c: &mut Criterion) {
     let model = Arc::new(Model::builtin("ghnet-full").expect("embedded model"));
     let mut p = Predictor::new(model.clone());
-    let (vn, ve) = inputs(4096);
+    let (vn, ve) = ghnet_models::sim::spread_velocities(4096);
     let scale = model.meta().input_scale_mps;
     let macs = model.network().macs_per_sample() as u64;
 

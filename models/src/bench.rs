@@ -73,17 +73,6 @@ impl Report {
     }
 }
 
-/// Velocities spread over speeds and directions, like [`Predictor`] inputs.
-fn velocities(n: usize) -> (Vec<f32>, Vec<f32>) {
-    (0..n)
-        .map(|i| {
-            let a = i as f32 * 0.618;
-            let s = 0.05 + (i % 97) as f32 * 0.1;
-            (s * a.cos(), s * a.sin())
-        })
-        .unzip()
-}
-
 /// Run `f` (which does `work` units) in rounds of about 20 ms for `seconds`, after a
 /// warm-up; the units per second of every round.
 fn rates(seconds: f64, work: f64, mut f: impl FnMut()) -> Vec<f64> {
@@ -135,7 +124,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 pub fn run(model: &Arc<Model>, kernel: Kernel, seconds: f64) -> Report {
     let net: Network = model.network().clone().with_kernel(kernel);
     let macs = net.macs_per_sample();
-    let (vn, ve) = velocities(4096);
+    let (vn, ve) = ghnet_models::sim::spread_velocities(4096);
     let scale = model.meta().input_scale_mps;
 
     // Peak first and last: the best of both brackets the clock the network ran at.

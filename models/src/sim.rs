@@ -95,6 +95,20 @@ pub enum SimError {
     },
 }
 
+/// `n` velocities (north, east; m/s) spread deterministically over speeds 0.05 to
+/// 9.65 m/s and all directions (golden-angle steps), no noise, no seed: the inputs
+/// of the inference benchmarks (`ghnet bench` and `cargo bench`), so both time the
+/// same work across every status and kernel branch.
+pub fn spread_velocities(n: usize) -> (Vec<f32>, Vec<f32>) {
+    (0..n)
+        .map(|i| {
+            let a = i as f32 * 0.618;
+            let s = 0.05 + (i % 97) as f32 * 0.1;
+            (s * a.cos(), s * a.sin())
+        })
+        .unzip()
+}
+
 /// Writes samples as CSV with a header row (see [`Sample`] for the columns).
 ///
 /// Unknown `speed_acc` is written as `NaN`, which [`read_csv`] reads back.

@@ -52,38 +52,19 @@ pub fn measure(
 ) -> anyhow::Result<LatencyRun> {
     let ipc = target.ipc.clone();
     let gnss = VelocityPublisher::new(&ipc, source)?;
-    let mut times = Vec::with_capacity(n as usize);
-    let mut lost = 0;
-    match output {
+    let (times, lost) = match output {
         Output::Iceoryx2 => {
             let headings = HeadingSubscriber::new(&ipc, source)?;
             target.wait_until("iceoryx2 connection", Duration::from_secs(30), || {
                 gnss.subscriber_count() > 0 && headings.publisher_count() > 0
             })?;
-            for i in 0..warmup + n {
-                let seq = first_seq + i;
-                let sample = moving_sample(seq);
-                let t0 = Instant::now();
-                gnss.send(sample)?;
-                let got = loop {
-                    match headings.recv_timeout(ANSWER_TIMEOUT)? {
-                        Some(h) if is_answer_to(seq, &h) => break true,
-                        Some(_) => continue,
-                        None => break false,
-                    }
-                };
-                let dt = t0.elapsed();
-                if i >= warmup {
-                    if got {
-                        times.push(dt.as_nanos() as u64);
-                    } else {
-                        lost += 1;
-                    }
+            round_trips(target, &gnss, first_seq, warmup, n, |seq| loop {
+                match headings.recv_timeout(ANSWER_TIMEOUT)? {
+                    Some(h) if is_answer_to(seq, &h) => return Ok(true),
+                    Some(_) => continue,
+                    None => return Ok(false),
                 }
-                if !got {
-                    target.check_running()?;
-                }
-            }
+            })?
         }
         Output::Zenoh => {
             let headings = ZenohHeadingSubscriber::new(session, &ipc, source)
@@ -109,33 +90,50 @@ pub fn measure(
                 }
             }
             while let Ok(Some(_)) = headings.recv_timeout(Duration::from_millis(200)) {}
-            for i in 0..warmup + n {
-                let s = seq + i;
-                let sample = moving_sample(s);
-                let t0 = Instant::now();
-                gnss.send(sample)?;
-                let got = loop {
-                    match headings.recv_timeout(ANSWER_TIMEOUT) {
-                        Ok(Some(h)) if is_answer_to(s, &h) => break true,
-                        Ok(Some(_)) | Err(_) => continue,
-                        Ok(None) => break false,
-                    }
-                };
-                let dt = t0.elapsed();
-                if i >= warmup {
-                    if got {
-                        times.push(dt.as_nanos() as u64);
-                    } else {
-                        lost += 1;
-                    }
+            round_trips(target, &gnss, seq, warmup, n, |seq| loop {
+                match headings.recv_timeout(ANSWER_TIMEOUT) {
+                    Ok(Some(h)) if is_answer_to(seq, &h) => return Ok(true),
+                    Ok(Some(_)) | Err(_) => continue,
+                    Ok(None) => return Ok(false),
                 }
-                if !got {
-                    target.check_running()?;
-                }
-            }
+            })?
         }
-    }
+    };
     let percentiles = Percentiles::of(times)
         .ok_or_else(|| anyhow::anyhow!("{}: no answer at all", target.kind.label()))?;
     Ok(LatencyRun { percentiles, lost })
+}
+
+/// `warmup` then `n` round trips from sequence number `first`: send one sample,
+/// `answer(seq)` waits for its answer (`false`: none within [`ANSWER_TIMEOUT`]).
+/// Returns the measured round trips in ns and how many were lost.
+fn round_trips(
+    target: &mut Target,
+    gnss: &VelocityPublisher,
+    first: u64,
+    warmup: u64,
+    n: u64,
+    mut answer: impl FnMut(u64) -> anyhow::Result<bool>,
+) -> anyhow::Result<(Vec<u64>, u64)> {
+    let mut times = Vec::with_capacity(n as usize);
+    let mut lost = 0;
+    for i in 0..warmup + n {
+        let seq = first + i;
+        let sample = moving_sample(seq);
+        let t0 = Instant::now();
+        gnss.send(sample)?;
+        let got = answer(seq)?;
+        let dt = t0.elapsed();
+        if i >= warmup {
+            if got {
+                times.push(dt.as_nanos() as u64);
+            } else {
+                lost += 1;
+            }
+        }
+        if !got {
+            target.check_running()?;
+        }
+    }
+    Ok((times, lost))
 }
