@@ -191,17 +191,15 @@ impl Tracker {
 }
 
 /// Scratch of the batch path, made once (per daemon) so answering a batch allocates
-/// nothing. The caller fills [`samples`](Self::samples) (up to the capacity given to
-/// [`Batch::new`]); then either [`Tracker::answer_batch`] answers them all for one
-/// source, or, for samples of several sources, the caller goes through the three
-/// steps itself with each sample's own tracker: [`book`](Self::book) every sample in
-/// order, one [`predict`](Self::predict), [`finish`](Self::finish) every sample.
+/// nothing. Per batch: [`clear`](Self::clear), fill [`samples`](Self::samples) (up to
+/// the capacity given to [`Batch::new`]), then three steps, each sample on its own
+/// source's tracker (the samples may come from several sources):
+/// [`book`](Self::book) every sample in order, one [`predict`](Self::predict),
+/// [`finish`](Self::finish) every sample.
 #[derive(Debug)]
 pub struct Batch {
     /// The samples to answer, in arrival order per source.
     pub samples: Vec<VelocitySample>,
-    /// One answer per sample after [`Tracker::answer_batch`].
-    pub answers: Vec<HeadingEstimate>,
     /// Per sample: its row in the model inputs, or [`Self::NO_MODEL`] (answered
     /// `InvalidInput` without a prediction).
     row: Vec<u32>,
@@ -220,7 +218,6 @@ impl Batch {
     pub fn new(capacity: usize) -> Self {
         Self {
             samples: Vec::with_capacity(capacity),
-            answers: Vec::with_capacity(capacity),
             row: vec![Self::NO_MODEL; capacity],
             rows: 0,
             v_north: vec![0.0; capacity],
@@ -235,16 +232,19 @@ impl Batch {
         self.row.len()
     }
 
+    /// Starts a new batch: no samples, no model inputs.
+    pub fn clear(&mut self) {
+        self.samples.clear();
+        self.rows = 0;
+    }
+
     /// Step 1: books `samples[i]` on its source's `tracker` (see [`Tracker::book`])
     /// and, if the model may see it, adds it to the model inputs. Call for `i = 0, 1,
-    /// ...` in order; `i = 0` starts a new batch.
+    /// ...` in order.
     ///
     /// # Panics
     /// If `i` is not below the capacity or `samples[i]` does not exist.
     pub fn book(&mut self, i: usize, tracker: &mut Tracker, limits: &Limits) {
-        if i == 0 {
-            self.rows = 0;
-        }
         let s = &self.samples[i];
         self.row[i] = if tracker.book(s, limits) {
             let r = self.rows;
@@ -274,37 +274,6 @@ impl Batch {
         let row = self.row[i];
         let prediction = (row != Self::NO_MODEL).then(|| self.predictions[row as usize]);
         tracker.finish(&self.samples[i], prediction, tag)
-    }
-}
-
-impl Tracker {
-    /// [`answer`](Self::answer) for every sample in `batch.samples` (all of this
-    /// source) with ONE model call (`Predictor::predict_batch_with_accuracy` costs
-    /// about half per sample from 4 samples on); the answers land in
-    /// `batch.answers`, in order.
-    ///
-    /// # Panics
-    /// If `batch.samples` holds more than the batch's capacity.
-    pub fn answer_batch(
-        &mut self,
-        batch: &mut Batch,
-        predictor: &mut Predictor,
-        limits: &Limits,
-        tag: &ModelTag,
-    ) {
-        let n = batch.samples.len();
-        batch.answers.clear();
-        if n == 0 {
-            return;
-        }
-        for i in 0..n {
-            batch.book(i, self, limits);
-        }
-        batch.predict(predictor);
-        for i in 0..n {
-            let answer = batch.finish(i, self, tag);
-            batch.answers.push(answer);
-        }
     }
 }
 
@@ -465,11 +434,11 @@ mod tests {
         assert_eq!(c.invalid, 1);
     }
 
-    /// `answer_batch` (book each, one batch model call, finish each) answers like
+    /// The batch steps (book each, one batch model call, finish each) answer like
     /// `answer` one by one, valid, invalid, backwards and stationary samples mixed:
     /// the same statuses and counters, values equal up to the batch kernel's rounding.
     #[test]
-    fn answer_batch_answers_like_answer() {
+    fn batch_steps_answer_like_answer() {
         let (mut p, l, tag) = setup();
         let mut inputs: Vec<VelocitySample> = (0..40)
             .map(|i| {
@@ -489,10 +458,16 @@ mod tests {
             .collect();
 
         let mut batch = Batch::new(64);
+        batch.clear();
         batch.samples.extend_from_slice(&inputs);
-        batched.answer_batch(&mut batch, &mut p, &l, &tag);
-        assert_eq!(batch.answers.len(), want.len());
-        for ((s, got), w) in inputs.iter().zip(&batch.answers).zip(&want) {
+        for i in 0..inputs.len() {
+            batch.book(i, &mut batched, &l);
+        }
+        batch.predict(&mut p);
+        let got: Vec<_> = (0..inputs.len())
+            .map(|i| batch.finish(i, &mut batched, &tag))
+            .collect();
+        for ((s, got), w) in inputs.iter().zip(&got).zip(&want) {
             assert_eq!((got.seq, got.status), (w.seq, w.status), "{s:?}");
             for (a, b) in [
                 (got.heading_deg, w.heading_deg),

@@ -489,7 +489,7 @@ impl Daemon {
     /// Allocates nothing.
     fn serve_round(&mut self, ports: &[Ports], states: &mut [State]) {
         let (batch, wake) = (&mut self.batch, &mut self.wake);
-        batch.samples.clear();
+        batch.clear();
         wake.owner.clear();
         wake.more.clear();
         for &f in &wake.fired {

@@ -139,9 +139,9 @@ fn receive_answer_publish_allocates_nothing() {
 
 /// The batch path ghnetd takes when samples pile up (one source that fell behind,
 /// or many that woke together): receive all, `Batch::book` each, one
-/// `Batch::predict`, `Batch::finish` each (through `Tracker::answer_batch`, the same
-/// three steps `serve_round` in daemon/src/serve.rs takes with the same scratch),
-/// then publish each. Only iceoryx2's own per-loan object may allocate.
+/// `Batch::predict`, `Batch::finish` each (the three steps `serve_round` in
+/// daemon/src/serve.rs takes with the same scratch), then publish each. Only
+/// iceoryx2's own per-loan object may allocate.
 #[test]
 fn batch_path_allocates_nothing() {
     let Fixture {
@@ -158,6 +158,7 @@ fn batch_path_allocates_nothing() {
     // The daemon's scratch, made once.
     const N: usize = 64;
     let mut batch = Batch::new(N);
+    let mut answers = Vec::with_capacity(N);
 
     let mut ours = 0;
     let mut publishes = 0;
@@ -178,16 +179,23 @@ fn batch_path_allocates_nothing() {
         // Round 0 is the warm-up (iceoryx2 connects ports lazily on first use).
         let counted = allocations(|| {
             velocity.drain_notifications().unwrap();
-            batch.samples.clear();
+            batch.clear();
             while let Some(s) = velocity.try_recv().unwrap() {
                 batch.samples.push(s);
             }
             assert_eq!(batch.samples.len(), N);
-            tracker.answer_batch(&mut batch, &mut predictor, &limits, &tag);
+            for i in 0..N {
+                batch.book(i, &mut tracker, &limits);
+            }
+            batch.predict(&mut predictor);
+            answers.clear();
+            for i in 0..N {
+                answers.push(batch.finish(i, &mut tracker, &tag));
+            }
         });
-        assert_eq!(batch.answers.len(), N);
+        assert_eq!(answers.len(), N);
         let mut published = 0;
-        for a in &batch.answers {
+        for a in &answers {
             published += allocations(|| heading.publish(*a).unwrap());
         }
         let notified = allocations(|| heading.notify().unwrap());
