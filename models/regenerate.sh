@@ -2,15 +2,15 @@
 # Retrain both shipped models from their recipes and regenerate their reports.
 # Deterministic: the same code on the same machine writes the same weights.
 # About 5 minutes on 2 cores. Then rebuild (the binaries embed the models) and run
-# `cargo test -p ghnet-models --test shipped` to check the committed numbers.
+# `cargo test -p ghnet-lab --test shipped` to check the committed numbers.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-cargo build --release -p ghnet-models --bin ghnet
+cargo build --release -p ghnet-lab --bin ghnet
 for m in ghnet-full paper-s1; do
-  ./target/release/ghnet train --recipe "$m" --output "models/$m.safetensors"
+  ./target/release/ghnet train --recipe "$m" --output "models/inference/weights/$m.safetensors"
 done
 # The binary embeds the models: rebuild before evaluating the built-in names.
-cargo build --release -p ghnet-models --bin ghnet
+cargo build --release -p ghnet-lab --bin ghnet
 for m in ghnet-full paper-s1; do
   ./target/release/ghnet eval --model "$m" --out-dir models/reports
 done

@@ -130,10 +130,15 @@ fn warn_if_stale(binary: &Path) {
     };
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut newest: Option<(SystemTime, PathBuf)> = None;
-    let mut stack: Vec<PathBuf> = ["daemon/src", "client/src", "models/src", "models"]
-        .iter()
-        .map(|d| root.join(d))
-        .collect();
+    let mut stack: Vec<PathBuf> = [
+        "daemon/src",
+        "client/src",
+        "models/inference/src",
+        "models/inference/weights",
+    ]
+    .iter()
+    .map(|d| root.join(d))
+    .collect();
     while let Some(dir) = stack.pop() {
         let Ok(entries) = std::fs::read_dir(&dir) else {
             continue;

@@ -11,7 +11,7 @@
 //!   `InvalidInput` answers seen.
 //!
 //! The Zenoh payload decoder is fuzzed in `client/src/codec.rs`, the CSV, model-file
-//! and model-metadata parsers in `models/tests/fuzz.rs`.
+//! and model-metadata parsers in `models/lab/tests/fuzz.rs`.
 
 use std::cell::Cell;
 use std::sync::Arc;

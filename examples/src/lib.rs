@@ -11,7 +11,7 @@
 //!   `while node.wait(cycle).is_ok()`), a fixed-rate schedule on it, and the wait for
 //!   the daemon before the first sample.
 //! - [`Vehicle`] — a simulated vehicle: one track of
-//!   `ghnet_models::sim::simulate_realistic`, replayed as [`VelocitySample`]s.
+//!   `ghnet_lab::sim::simulate_realistic`, replayed as [`VelocitySample`]s.
 //! - [`now_ns`] — wall-clock timestamps in the unit the wire wants.
 //! - [`table`] — the live heading table of `subscriber` and `demo`;
 //!   [`TablePrinter`] prints it from a thread of its own.
@@ -37,7 +37,7 @@ use ghnet_client::{
     flags, HeadingEstimate, HeadingStatus, HeadingSubscriber, IpcConfig, RecvError,
     VelocityPublisher, VelocitySample,
 };
-use ghnet_models::sim::{simulate_realistic, RealisticParams, Sample};
+use ghnet_lab::sim::{simulate_realistic, RealisticParams, Sample};
 use iceoryx2::prelude::*;
 
 /// Arguments every example takes.

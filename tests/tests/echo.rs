@@ -1,7 +1,7 @@
 //! A published sample comes back as the heading `ghnet_models` computes in-process.
 
 use ghnet_client::{HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
-use ghnet_models::sim::{simulate_realistic, RealisticParams};
+use ghnet_lab::sim::{simulate_realistic, RealisticParams};
 use ghnet_models::{Predictor, Status, StatusPolicy};
 use ghnet_tests::{close, now_ns, test_model, Daemon, Namespace, WATCHDOG};
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """ONNX Runtime reference for GHNet inference speed (not part of `cargo test`).
 
-Exports the shipped model (models/ghnet-full.safetensors, PyTorch names) to ONNX, built
+Exports the shipped model (models/inference/weights/ghnet-full.safetensors, PyTorch names) to ONNX, built
 with the `onnx` helper API from the weights: the same folded network ghnet runs (batch
 norm folded into each kernel-1 conv in f64, the four fc layers collapsed into one affine
 map in f64, tanh-form GELU), on inputs scaled by the model's `input_scale_mps`. Then:
@@ -15,9 +15,9 @@ map in f64, tanh-form GELU), on inputs scaled by the model's `input_scale_mps`. 
 Usage (from the repository root; needs `python3 -m pip install onnx onnxruntime numpy
 safetensors`):
 
-    python3 models/benches/ort_reference.py [--seconds 2] [--onnx /tmp/ghnet-full.onnx]
+    python3 models/lab/benches/ort_reference.py [--seconds 2] [--onnx /tmp/ghnet-full.onnx]
 
-The Rust side is built with `cargo build --release -p ghnet-models --bin ghnet` unless
+The Rust side is built with `cargo build --release -p ghnet-lab --bin ghnet` unless
 `--ghnet PATH` names a binary.
 """
 
@@ -35,7 +35,7 @@ import onnxruntime as ort
 from onnx import TensorProto, helper, numpy_helper
 from safetensors import safe_open
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 K0 = np.sqrt(2.0 / np.pi)
 
 
@@ -213,7 +213,7 @@ def ghnet(args, cmd, stdin=None):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--weights", default=os.path.join(ROOT, "models", "ghnet-full.safetensors"))
+    ap.add_argument("--weights", default=os.path.join(ROOT, "models", "inference", "weights", "ghnet-full.safetensors"))
     ap.add_argument("--seconds", type=float, default=2.0, help="per measurement")
     ap.add_argument("--onnx", help="also write the ONNX model here")
     ap.add_argument("--opset", type=int, default=20, help="20 uses the Gelu op; 17 spells it out")

@@ -11,11 +11,12 @@ use std::sync::Arc;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
-use ghnet_models::recipes::{self, DataSpec, Recipe};
-use ghnet_models::sim::{self, RealisticParams, S1Params};
+use ghnet_lab::recipes::{self, DataSpec, Recipe};
+use ghnet_lab::sim::{self, RealisticParams, S1Params};
+use ghnet_lab::{eval, plot, replay, train};
 use ghnet_models::simd::Kernel;
 use ghnet_models::weights::{ModelMeta, FORMAT};
-use ghnet_models::{eval, infer, plot, train, Model, Predictor, DEFAULT_MODEL};
+use ghnet_models::{Model, Predictor, DEFAULT_MODEL};
 
 #[derive(Parser)]
 #[command(
@@ -41,7 +42,7 @@ enum Cmd {
         /// Recipe name.
         #[arg(long)]
         recipe: String,
-        /// Output safetensors file (default: models/<recipe>.safetensors).
+        /// Output safetensors file (default: models/inference/weights/<recipe>.safetensors).
         #[arg(long)]
         output: Option<PathBuf>,
         /// Override the recipe's seed for initialisation, shuffling and dropout.
@@ -225,7 +226,8 @@ fn run(cli: Cli) -> Result<()> {
             if let Some(e) = epochs {
                 r.train.epochs = e;
             }
-            let output = output.unwrap_or_else(|| format!("models/{recipe}.safetensors").into());
+            let output = output
+                .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
             train_recipe(&r, &output, quiet)?;
         }
         Cmd::Eval { model, out_dir } => {
@@ -276,7 +278,7 @@ fn run(cli: Cli) -> Result<()> {
             let out = File::create(&output)
                 .with_context(|| format!("cannot create output {}", output.display()))?;
             let mut p = Predictor::new(model);
-            let s = infer::run(
+            let s = replay::run(
                 &mut p,
                 BufReader::with_capacity(1 << 16, inp),
                 BufWriter::with_capacity(1 << 16, out),
@@ -344,7 +346,7 @@ fn forward_stdin(m: &Model) -> Result<()> {
         let [vn, ve] = v[..] else {
             bail!("line {}: expected `v_north v_east`, got `{line}`", i + 1);
         };
-        let x = train::scale_input(vn, ve, m.meta().input_scale_mps);
+        let x = ghnet_models::head::scale_input(vn, ve, m.meta().input_scale_mps);
         net.forward_one(&x, &mut y, &mut scratch);
         let fields: Vec<String> = y.iter().map(|v| format!("{v:e}")).collect();
         writeln!(out, "{}", fields.join(" "))?;

@@ -12,10 +12,10 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::gelu::gelu_with_grad;
-use crate::head::Head;
-use crate::net::Network;
-use crate::params::{Arch, ParamSet, Role, BN_EPS};
+use ghnet_models::gelu::gelu_with_grad;
+use ghnet_models::head::{accuracy_sigma_base, scale_input, Head};
+use ghnet_models::net::Network;
+use ghnet_models::params::{Arch, ParamSet, Role, BN_EPS};
 
 /// Batch-norm momentum for running statistics, PyTorch's default.
 const BN_MOMENTUM: f32 = 0.1;
@@ -604,12 +604,6 @@ impl AdamW {
     }
 }
 
-/// Scale velocities into the network's input.
-#[inline]
-pub fn scale_input(v_north: f32, v_east: f32, input_scale: f32) -> [f32; 2] {
-    [v_north / input_scale, v_east / input_scale]
-}
-
 /// Wrapped errors (radians) of the decoded headings and raw σ (radians) of a folded
 /// network over a dataset.
 pub fn evaluate(
@@ -644,7 +638,8 @@ pub fn evaluate(
             let i = start + j;
             // Judge what users get: the decoded (and, for a restricted range, clamped)
             // heading, with σ before calibration.
-            let (_, _, s) = head.loss(
+            let (_, _, s) = crate::loss::head_loss(
+                head,
                 &out,
                 data.v_north[i],
                 data.v_east[i],
@@ -653,7 +648,7 @@ pub fn evaluate(
                 &mut dy,
             );
             let (deg, _) = head.decode(&out, data.v_north[i], data.v_east[i], 1.0);
-            errs.push(crate::head::wrap_rad(
+            errs.push(ghnet_models::head::wrap_rad(
                 (deg - data.heading_deg[i]).to_radians(),
             ));
             sigmas.push(s);
@@ -677,25 +672,6 @@ fn val_objective(errs: &[f32], sigmas: &[f32], sigma_weight: f32) -> f32 {
         sum += e.abs() as f64 + (sigma_weight * (0.5 * e * e / (s * s) + s.ln())) as f64;
     }
     (sum / errs.len().max(1) as f64) as f32
-}
-
-/// The unscaled σ (radians) a receiver's speed accuracy implies for atan2 at this
-/// velocity: `sAcc/ŝ`, capped at the uniform-circle value, where
-/// `ŝ² = |v|² − 2·sAcc²` removes the noise's own contribution to the measured speed
-/// (2-D noise adds `2σ²` to `E|v|²`; without this, a stopped vehicle's noise looks
-/// like slow motion with a confident heading). `None` when sAcc is unknown, negative or
-/// not finite.
-pub fn accuracy_sigma_base(v_north: f32, v_east: f32, speed_acc: f32) -> Option<f32> {
-    if !(speed_acc.is_finite() && speed_acc > 0.0) {
-        return None;
-    }
-    let cap = crate::head::MAX_STD_DEG.to_radians();
-    let s2 = v_north * v_north + v_east * v_east - 2.0 * speed_acc * speed_acc;
-    Some(if s2 > 0.0 {
-        (speed_acc / s2.sqrt()).min(cap)
-    } else {
-        cap
-    })
 }
 
 /// The scale `k` such that 68.27% of `|e|/σ` are at most `k`.
@@ -734,11 +710,11 @@ pub fn train(
         "empty training or validation set"
     );
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let mut params = ParamSet::init(arch, &mut rng);
+    let mut params = ParamSet::init(arch, |b| rng.random_range(-b..b));
     let n_out = arch.fc.len() + 1;
     params
         .get_mut(&format!("fc{n_out}.bias"))
-        .copy_from_slice(&head.initial_bias());
+        .copy_from_slice(&crate::loss::initial_bias(head));
     let mut grads = vec![0.0f32; params.data().len()];
     let mut opt = AdamW::new(&params, cfg.weight_decay);
     let batch = cfg.batch.min(train.len()).max(2);
@@ -776,7 +752,8 @@ pub fn train(
                 for k in 0..arch.output {
                     yj[k] = out[(k, j)];
                 }
-                let (l, _, _) = head.loss(
+                let (l, _, _) = crate::loss::head_loss(
+                    head,
                     &yj,
                     train.v_north[i],
                     train.v_east[i],
@@ -1033,14 +1010,14 @@ mod tests {
             range_deg: [0.0, 360.0],
         };
         let mut rng = ChaCha8Rng::seed_from_u64(10);
-        let params0 = ParamSet::init(&arch, &mut rng);
+        let params0 = ParamSet::init(&arch, |b| rng.random_range(-b..b));
         let n = 6;
         let mut graph = Graph::new(&arch, n);
         let vn: Vec<f32> = (0..n).map(|_| rng.random_range(-2.0..2.0)).collect();
         let ve: Vec<f32> = (0..n).map(|_| rng.random_range(-2.0..2.0)).collect();
         // Truth 60° away from atan2 keeps the wrapped error away from its kinks.
         let truth: Vec<f32> = (0..n)
-            .map(|i| crate::head::heading_deg(vn[i], ve[i]) + 60.0)
+            .map(|i| ghnet_models::head::heading_deg(vn[i], ve[i]) + 60.0)
             .collect();
         let mut drop_rng = ChaCha8Rng::seed_from_u64(11);
         graph.sample_dropout(0.2, &mut drop_rng);
@@ -1060,7 +1037,8 @@ mod tests {
             let mut dy = [0.0f32; 4];
             for j in 0..n {
                 let y = [out[(0, j)], out[(1, j)], out[(2, j)], out[(3, j)]];
-                total += head.loss(&y, vn[j], ve[j], truth[j], 0.0, &mut dy).0 as f64;
+                total += crate::loss::head_loss(&head, &y, vn[j], ve[j], truth[j], 0.0, &mut dy).0
+                    as f64;
                 for k in 0..4 {
                     total += (r[(k, j)] * y[k]) as f64;
                     dout[(k, j)] = dy[k] + r[(k, j)];
@@ -1106,7 +1084,7 @@ mod tests {
     fn folded_network_matches_unfolded_eval_graph() {
         let arch = Arch::paper(3);
         let mut rng = ChaCha8Rng::seed_from_u64(12);
-        let mut params = ParamSet::init(&arch, &mut rng);
+        let mut params = ParamSet::init(&arch, |b| rng.random_range(-b..b));
         // Non-trivial batch-norm statistics and affine parameters.
         for l in 1..=arch.conv.len() {
             for v in params.get_mut(&format!("bn{l}.running_mean")) {

@@ -205,8 +205,10 @@ impl ParamSet {
     }
 
     /// PyTorch's default initialisation (Kaiming-uniform weights and biases in
-    /// `±1/sqrt(fan_in)`), from a seeded generator so training is reproducible.
-    pub fn init(arch: &Arch, rng: &mut impl rand::Rng) -> Self {
+    /// `±1/sqrt(fan_in)`). `uniform(bound)` draws one value in `[-bound, bound)`: the
+    /// caller brings a seeded generator (training is reproducible) and this crate needs
+    /// no random-number dependency.
+    pub fn init(arch: &Arch, mut uniform: impl FnMut(f32) -> f32) -> Self {
         let mut p = Self::zeros(arch);
         for i in 0..p.specs.len() {
             let spec = &p.specs[i];
@@ -225,7 +227,7 @@ impl ParamSet {
             let bound = 1.0 / (fan_in as f32).sqrt();
             let range = p.range(i);
             for v in &mut p.data[range] {
-                *v = rng.random_range(-bound..bound);
+                *v = uniform(bound);
             }
         }
         p

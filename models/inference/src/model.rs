@@ -8,21 +8,20 @@ use std::sync::Arc;
 
 use faer::Mat;
 
-use crate::head::{heading_deg, Head, MAX_STD_DEG};
+use crate::head::{accuracy_sigma_base, heading_deg, scale_input, Head, MAX_STD_DEG};
 use crate::net::{Network, Scratch};
 use crate::params::ParamSet;
-use crate::train::{accuracy_sigma_base, scale_input};
 use crate::weights::{self, ModelMeta, WeightsError};
 
 /// The models compiled into every binary, by name. `ghnet-full` is the default.
 pub const BUILTIN: [(&str, &[u8]); 2] = [
     (
         "ghnet-full",
-        include_bytes!("../ghnet-full.safetensors").as_slice(),
+        include_bytes!("../weights/ghnet-full.safetensors").as_slice(),
     ),
     (
         "paper-s1",
-        include_bytes!("../paper-s1.safetensors").as_slice(),
+        include_bytes!("../weights/paper-s1.safetensors").as_slice(),
     ),
 ];
 

@@ -32,7 +32,7 @@
 
 use std::io::{Read, Write};
 
-use crate::model::{Prediction, Predictor, Status};
+use ghnet_models::model::{Prediction, Predictor, Status};
 
 /// Rows per block: large enough for the batch path, small enough to stay in cache.
 const BLOCK: usize = 1024;
@@ -180,7 +180,7 @@ pub fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Model;
+    use ghnet_models::Model;
     use std::sync::Arc;
 
     fn predictor() -> Predictor {

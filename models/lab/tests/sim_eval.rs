@@ -1,12 +1,12 @@
 //! End to end through the public API: simulate S1, round-trip the CSV, compute the
 //! baselines and the Bayes limit, evaluate, render, plot.
 
-use ghnet_models::bayes::BayesS1;
-use ghnet_models::eval::{
+use ghnet_lab::bayes::BayesS1;
+use ghnet_lab::eval::{
     evaluate, to_markdown, Estimate, EvalConfig, Report, Truth, ATAN2, BAYES, PRIOR_ONLY,
 };
-use ghnet_models::plot::plot_mae_vs_speed;
-use ghnet_models::sim::{read_csv, simulate_s1, write_csv, S1Params, Split};
+use ghnet_lab::plot::plot_mae_vs_speed;
+use ghnet_lab::sim::{read_csv, simulate_s1, write_csv, S1Params, Split};
 
 #[test]
 fn s1_pipeline_orders_the_baselines() {

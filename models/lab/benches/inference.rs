@@ -1,6 +1,6 @@
 //! Inference cost of the shipped model, with this core's peak measured in the same run.
 //!
-//! `cargo bench -p ghnet-models --bench inference`
+//! `cargo bench -p ghnet-lab --bench inference`
 //!
 //! Groups:
 //! - `single`: one sample through `Predictor::predict` (validation, network, head, status)
@@ -28,7 +28,7 @@ use ghnet_models::{Model, Prediction, Predictor};
 fn bench(c: &mut Criterion) {
     let model = Arc::new(Model::builtin("ghnet-full").expect("embedded model"));
     let mut p = Predictor::new(model.clone());
-    let (vn, ve) = ghnet_models::sim::spread_velocities(4096);
+    let (vn, ve) = ghnet_lab::sim::spread_velocities(4096);
     let scale = model.meta().input_scale_mps;
     let macs = model.network().macs_per_sample() as u64;
 

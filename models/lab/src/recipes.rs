@@ -9,11 +9,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::bayes::BayesS1;
 use crate::eval::{self, Estimate, EvalConfig, Report, Truth};
-use crate::head::Head;
-use crate::model::{Model, Predictor};
 use crate::sim::{self, RealisticParams, S1Params, Sample, Split};
 use crate::train::{Dataset, TrainConfig};
-use crate::Arch;
+use ghnet_models::head::Head;
+use ghnet_models::model::{Model, Predictor};
+use ghnet_models::Arch;
 
 /// Which simulator made a data set, with its parameters and seed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -157,7 +157,7 @@ pub fn model_estimate(model: &std::sync::Arc<Model>, samples: &[Sample]) -> Esti
     let vn: Vec<f32> = samples.iter().map(|s| s.v_north).collect();
     let ve: Vec<f32> = samples.iter().map(|s| s.v_east).collect();
     let acc: Vec<f32> = samples.iter().map(|s| s.speed_acc).collect();
-    let mut out = vec![crate::Prediction::INVALID; samples.len()];
+    let mut out = vec![ghnet_models::Prediction::INVALID; samples.len()];
     p.predict_batch_with_accuracy(&vn, &ve, &acc, &mut out);
     Estimate {
         name: model.name().to_string(),

@@ -4,8 +4,8 @@
 
 use std::sync::Arc;
 
-use ghnet_models::eval::{Report, ATAN2};
-use ghnet_models::recipes::{self, DataSpec};
+use ghnet_lab::eval::{Report, ATAN2};
+use ghnet_lab::recipes::{self, DataSpec};
 use ghnet_models::Model;
 
 fn close(a: f64, b: f64, what: &str) {
@@ -45,7 +45,7 @@ fn check(name: &str) {
     );
     let committed: Report = serde_json::from_str(
         &std::fs::read_to_string(format!(
-            "{}/reports/{name}.json",
+            "{}/../reports/{name}.json",
             env!("CARGO_MANIFEST_DIR")
         ))
         .expect("committed report exists"),
@@ -92,7 +92,7 @@ fn committed_reports_meet_the_accuracy_bars() {
     let read = |name: &str| -> Report {
         serde_json::from_str(
             &std::fs::read_to_string(format!(
-                "{}/reports/{name}.json",
+                "{}/../reports/{name}.json",
                 env!("CARGO_MANIFEST_DIR")
             ))
             .unwrap(),

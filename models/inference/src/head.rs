@@ -1,5 +1,5 @@
-//! Output heads: how the network's outputs become a heading and its standard deviation,
-//! and the loss that trains them.
+//! Output heads: how the network's outputs become a heading and its standard deviation.
+//! The losses that train them are in the lab (`ghnet_lab::loss`).
 //!
 //! Two heads exist because the two shipped models answer different questions.
 //!
@@ -31,13 +31,11 @@ use serde::{Deserialize, Serialize};
 /// (`180°/√3`). A larger σ would claim less than no information.
 pub const MAX_STD_DEG: f32 = 103.923_05;
 
-/// Bounds on the raw `log σ` output (σ in radians), so one bad output can't overflow.
-const LOG_SIGMA_MIN: f32 = -12.0;
-const LOG_SIGMA_MAX: f32 = 3.0;
-
-/// Weight of the penalty that keeps the residual head's `(c, s)` near the unit circle,
-/// where `atan2(s, c)` is well conditioned.
-const NORM_PENALTY: f32 = 0.01;
+/// Lower bound on the raw `log σ` output (σ in radians), so one bad output can't
+/// underflow; the lab's loss clamps with the same bounds.
+pub const LOG_SIGMA_MIN: f32 = -12.0;
+/// Upper bound on the raw `log σ` output, so one bad output can't overflow.
+pub const LOG_SIGMA_MAX: f32 = 3.0;
 
 /// How outputs map to a heading.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -96,8 +94,9 @@ pub fn heading_deg(v_north: f32, v_east: f32) -> f32 {
     }
 }
 
+/// The logistic function, the gate of the blend and residual heads.
 #[inline]
-fn sigmoid(x: f32) -> f32 {
+pub fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
 }
 
@@ -150,9 +149,10 @@ impl Head {
         }
     }
 
-    /// Predicted heading in radians (not wrapped) and raw `log σ`.
+    /// Predicted heading in radians (not wrapped) and raw `log σ`: what [`Head::decode`]
+    /// finishes for users and what the lab's loss differentiates.
     #[inline]
-    fn raw(&self, y: &[f32], v_north: f32, v_east: f32) -> (f32, f32) {
+    pub fn raw(&self, y: &[f32], v_north: f32, v_east: f32) -> (f32, f32) {
         match *self {
             Head::Angle {
                 centre_deg,
@@ -194,78 +194,32 @@ impl Head {
         let sigma = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX).exp() * sigma_scale;
         (deg, sigma.to_degrees().min(MAX_STD_DEG))
     }
+}
 
-    /// Loss for one sample and its gradient with respect to the outputs, written to `dy`.
-    ///
-    /// Returns `(loss, wrapped error in radians, raw σ in radians)`. `sigma_weight` scales the
-    /// likelihood term.
-    pub fn loss(
-        &self,
-        y: &[f32],
-        v_north: f32,
-        v_east: f32,
-        truth_deg: f32,
-        sigma_weight: f32,
-        dy: &mut [f32],
-    ) -> (f32, f32, f32) {
-        let (psi, log_sigma) = self.raw(y, v_north, v_east);
-        let e = wrap_rad(psi - truth_deg.to_radians());
-        let sign = if e > 0.0 {
-            1.0
-        } else if e < 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
-        let mut loss = e.abs();
-        let s = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
-        let inv_var = (-2.0 * s).exp();
-        loss += sigma_weight * (0.5 * e * e * inv_var + s);
-        let ds = if log_sigma == s {
-            sigma_weight * (1.0 - e * e * inv_var)
-        } else {
-            0.0
-        };
-        match *self {
-            Head::Angle { half_range_deg, .. } => {
-                dy[0] = sign * half_range_deg.to_radians();
-                dy[1] = ds;
-            }
-            Head::Blend {
-                centre_deg,
-                half_range_deg,
-            } => {
-                let a = v_east.atan2(v_north);
-                let d = wrap_rad((centre_deg + half_range_deg * y[0]).to_radians() - a);
-                let w = sigmoid(y[1]);
-                dy[0] = sign * w * half_range_deg.to_radians();
-                dy[1] = sign * d * w * (1.0 - w);
-                dy[2] = ds;
-            }
-            Head::Residual { .. } => {
-                let (c, sn) = (y[0], y[1]);
-                let r2 = (c * c + sn * sn).max(1e-12);
-                let pen = r2 - 1.0;
-                let w = sigmoid(y[2]);
-                loss += NORM_PENALTY * pen * pen;
-                dy[0] = sign * w * (-sn / r2) + NORM_PENALTY * 4.0 * pen * c;
-                dy[1] = sign * w * (c / r2) + NORM_PENALTY * 4.0 * pen * sn;
-                dy[2] = sign * sn.atan2(c) * w * (1.0 - w);
-                dy[3] = ds;
-            }
-        }
-        (loss, e, s.exp())
-    }
+/// Scale velocities into the network's input: divided by the model's `input_scale_mps`,
+/// so training and inference see the same numbers.
+#[inline]
+pub fn scale_input(v_north: f32, v_east: f32, input_scale: f32) -> [f32; 2] {
+    [v_north / input_scale, v_east / input_scale]
+}
 
-    /// Initial bias of the output layer: the residual head starts at `Δ = 0`
-    /// (`c = 1, s = 0`), both heads at σ ≈ 1 rad.
-    pub fn initial_bias(&self) -> Vec<f32> {
-        match self {
-            Head::Angle { .. } => vec![0.0, 0.0],
-            Head::Residual { .. } => vec![1.0, 0.0, 0.0, 0.0],
-            Head::Blend { .. } => vec![0.0, 0.0, 0.0],
-        }
+/// The unscaled σ (radians) a receiver's speed accuracy implies for atan2 at this
+/// velocity: `sAcc/ŝ`, capped at the uniform-circle value, where
+/// `ŝ² = |v|² − 2·sAcc²` removes the noise's own contribution to the measured speed
+/// (2-D noise adds `2σ²` to `E|v|²`; without this, a stopped vehicle's noise looks
+/// like slow motion with a confident heading). `None` when sAcc is unknown, negative or
+/// not finite.
+pub fn accuracy_sigma_base(v_north: f32, v_east: f32, speed_acc: f32) -> Option<f32> {
+    if !(speed_acc.is_finite() && speed_acc > 0.0) {
+        return None;
     }
+    let cap = crate::head::MAX_STD_DEG.to_radians();
+    let s2 = v_north * v_north + v_east * v_east - 2.0 * speed_acc * speed_acc;
+    Some(if s2 > 0.0 {
+        (speed_acc / s2.sqrt()).min(cap)
+    } else {
+        cap
+    })
 }
 
 #[cfg(test)]
@@ -305,52 +259,6 @@ mod tests {
         // σ is capped at the uniform-circle value.
         let (_, std) = r.decode(&[1.0, 0.0, 0.0, 3.0], 0.0, 2.0, 10.0);
         assert_eq!(std, MAX_STD_DEG);
-    }
-
-    /// The σ term uses the error as a constant (stop-gradient), which finite differences
-    /// cannot see: heading outputs are checked with the σ term off, the σ output with it on.
-    fn check_loss_grad(head: Head, y: &[f32], vn: f32, ve: f32, truth: f32) {
-        let k_sigma = y.len() - 1;
-        for k in 0..y.len() {
-            let w = if k == k_sigma { 0.3 } else { 0.0 };
-            let mut dy = vec![0.0; y.len()];
-            head.loss(y, vn, ve, truth, w, &mut dy);
-            let h = 1e-3;
-            let mut yp = y.to_vec();
-            let mut ym = y.to_vec();
-            yp[k] += h;
-            ym[k] -= h;
-            let mut tmp = vec![0.0; y.len()];
-            let lp = head.loss(&yp, vn, ve, truth, w, &mut tmp).0 as f64;
-            let lm = head.loss(&ym, vn, ve, truth, w, &mut tmp).0 as f64;
-            let fd = (lp - lm) / (2.0 * h as f64);
-            assert!(
-                (fd - dy[k] as f64).abs() < 2e-3 * (1.0 + fd.abs()),
-                "{head:?} output {k}: analytic {} fd {fd}",
-                dy[k]
-            );
-        }
-    }
-
-    #[test]
-    fn head_loss_gradients_match_finite_differences() {
-        let angle = Head::Angle {
-            centre_deg: 45.0,
-            half_range_deg: 45.0,
-        };
-        check_loss_grad(angle, &[0.3, -1.2], 1.0, 0.5, 20.0);
-        check_loss_grad(angle, &[-0.7, 0.4], 0.1, 0.2, 80.0);
-        let r = Head::Residual {
-            range_deg: [0.0, 360.0],
-        };
-        check_loss_grad(r, &[0.9, 0.2, 0.3, -0.5], 1.0, 0.5, 10.0);
-        check_loss_grad(r, &[1.3, -0.4, -0.8, 0.7], -1.0, -0.5, 300.0);
-        let b = Head::Blend {
-            centre_deg: 45.0,
-            half_range_deg: 45.0,
-        };
-        check_loss_grad(b, &[0.2, 0.3, -0.5], 1.0, 0.5, 60.0);
-        check_loss_grad(b, &[-0.6, -1.1, 0.4], -0.1, 0.05, 10.0);
     }
 
     #[test]

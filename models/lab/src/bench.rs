@@ -124,7 +124,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 pub fn run(model: &Arc<Model>, kernel: Kernel, seconds: f64) -> Report {
     let net: Network = model.network().clone().with_kernel(kernel);
     let macs = net.macs_per_sample();
-    let (vn, ve) = ghnet_models::sim::spread_velocities(4096);
+    let (vn, ve) = ghnet_lab::sim::spread_velocities(4096);
     let scale = model.meta().input_scale_mps;
 
     // Peak first and last: the best of both brackets the clock the network ran at.

@@ -363,12 +363,12 @@ pub fn write(path: &Path, params: &ParamSet, meta: &ModelMeta) -> std::io::Resul
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
+    use rand::{Rng, SeedableRng};
 
     fn sample() -> (ParamSet, ModelMeta) {
         let arch = Arch::paper(4);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let params = ParamSet::init(&arch, &mut rng);
+        let params = ParamSet::init(&arch, |b| rng.random_range(-b..b));
         let meta = ModelMeta {
             format: FORMAT.into(),
             name: "test".into(),

@@ -2,7 +2,7 @@
 //! counts so CI stays at a few seconds per target), plus one malformed-CSV run of the
 //! real `ghnet infer` binary.
 //!
-//! - the CSV path of `ghnet infer` (`infer::run`): arbitrary bytes, arbitrary rows;
+//! - the CSV path of `ghnet infer` (`replay::run`): arbitrary bytes, arbitrary rows;
 //! - the safetensors model loader (`weights::from_bytes`): arbitrary bytes, and
 //!   mutations (byte flips, truncation) of a valid file;
 //! - the model metadata (`ModelMeta`, JSON in the safetensors header): arbitrary
@@ -13,8 +13,9 @@
 use std::collections::HashMap;
 use std::sync::{Arc, OnceLock};
 
+use ghnet_lab::replay;
 use ghnet_models::weights::{self, WeightsError};
-use ghnet_models::{infer, Model, Predictor};
+use ghnet_models::{Model, Predictor};
 use proptest::prelude::*;
 
 fn model() -> Arc<Model> {
@@ -40,9 +41,9 @@ fn with_metadata(md: HashMap<String, String>) -> Vec<u8> {
     safetensors::serialize(st.tensors(), Some(md)).unwrap()
 }
 
-fn infer_bytes(input: &[u8]) -> Result<(Vec<u8>, infer::InferSummary), infer::InferError> {
+fn infer_bytes(input: &[u8]) -> Result<(Vec<u8>, replay::InferSummary), replay::InferError> {
     let mut out = Vec::new();
-    let s = infer::run(&mut Predictor::new(model()), input, &mut out)?;
+    let s = replay::run(&mut Predictor::new(model()), input, &mut out)?;
     Ok((out, s))
 }
 

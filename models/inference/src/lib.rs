@@ -1,0 +1,34 @@
+//! `ghnet_models`: GHNet inference, what `ghnetd` links. The network of the paper's
+//! Table I on [faer], its weights, the output heads and the per-thread predictor, and
+//! the models compiled into every binary. Nothing else: simulation, training,
+//! evaluation and the `ghnet` tool are the lab (`ghnet-lab`), which depends on this
+//! crate and never the other way round, so the daemon links no plotting, CSV or
+//! random-number code.
+//!
+//! # Layout
+//! - [`params`]: named tensors in PyTorch `state_dict` order and the architecture (Table I).
+//! - [`gelu`]: the tanh-form GELU the paper uses, vectorisable.
+//! - [`net`]: the inference network, batch norm folded and linear head collapsed.
+//! - [`simd`]: the run-time choice of AVX-512 / AVX2+FMA / portable kernels, and the peak
+//!   FMA loop benches compare against.
+//! - [`head`]: how outputs become a heading and σ (decoding only; the lab has the losses).
+//! - [`weights`]: safetensors files with PyTorch names and ghnet metadata.
+//! - [`model`]: [`Model`] (loaded, shareable) and [`Predictor`] (per thread, no allocation),
+//!   and the embedded models ([`model::BUILTIN`], [`DEFAULT_MODEL`]).
+//!
+//! This crate knows nothing about IPC: the daemon wires it to the transports.
+//!
+//! [faer]: https://docs.rs/faer
+#![warn(missing_docs)]
+
+pub mod gelu;
+pub mod head;
+pub mod model;
+pub mod net;
+pub mod params;
+pub mod simd;
+pub mod weights;
+
+pub use model::{Model, ModelError, Prediction, Predictor, Status, StatusPolicy, DEFAULT_MODEL};
+pub use params::Arch;
+pub use weights::ModelMeta;

@@ -1,0 +1,24 @@
+//! `ghnet_lab`: where GHNet models are made and judged. Simulation, training,
+//! evaluation, plots, offline replay of logs and the `ghnet` command-line tool, on top
+//! of the inference crate `ghnet_models` (which never imports from here).
+//!
+//! # Layout
+//! - [`sim`]: the paper's S1 grid and a realistic receiver over the full circle.
+//! - [`loss`]: the losses that train the output heads, with their gradients.
+//! - [`train`]: forward/backward of every layer, AdamW, early stopping, σ calibration.
+//! - [`bayes`]: the Bayes-optimal estimate for the S1 prior (the physical limit).
+//! - [`eval`]: per-speed-bin tables, baselines and σ calibration; [`plot`]: the MAE plot.
+//! - [`recipes`]: how the shipped models are trained and judged.
+//! - [`replay`]: streaming CSV inference for offline replay of logs (`ghnet infer`).
+//!
+//! This crate knows nothing about IPC: the daemon wires the models to the transports.
+#![warn(missing_docs)]
+
+pub mod bayes;
+pub mod eval;
+pub mod loss;
+pub mod plot;
+pub mod recipes;
+pub mod replay;
+pub mod sim;
+pub mod train;
