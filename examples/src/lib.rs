@@ -12,21 +12,15 @@
 //!   the daemon before the first sample.
 //! - [`Vehicle`] — a simulated vehicle: one track of
 //!   `ghnet_lab::sim::simulate_realistic`, replayed as [`VelocitySample`]s.
-//! - [`now_ns`] — wall-clock timestamps in the unit the wire wants.
-//! - [`table`] — the live heading table of `subscriber` and `demo`;
+//! - [`now_ns`], [`latency_since`] — wall-clock timestamps in the unit the wire wants,
+//!   and a heading's age; [`log_to_stderr`] — tracing for the demo's daemon.
+//! - [`table`] — the live heading table of `subscriber`, `zenoh_subscriber` and
+//!   `demo`, a list of columns (add one to show another estimate beside ghnet's);
 //!   [`TablePrinter`] prints it from a thread of its own.
-//! - [`Collector`], [`Tally`], [`Percentiles`] — the bookkeeping of `soak`.
-//! - [`SpawnedDaemon`] — a `ghnetd` child process that is stopped and reaped.
-//! - [`soak`] — the soak run (`soak` binary and the CI soak test): exactly-once on
-//!   iceoryx2 and Zenoh, ghnetd's resident memory.
 
 #![warn(missing_docs)]
 
-pub mod soak;
-
 use std::fmt;
-use std::path::Path;
-use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
@@ -34,8 +28,8 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
 use ghnet_client::{
-    flags, HeadingEstimate, HeadingStatus, HeadingSubscriber, IpcConfig, RecvError,
-    VelocityPublisher, VelocitySample,
+    flags, HeadingEstimate, HeadingSubscriber, IpcConfig, RecvError, VelocityPublisher,
+    VelocitySample,
 };
 use ghnet_lab::sim::{simulate_realistic, RealisticParams, Sample};
 use iceoryx2::prelude::*;
@@ -57,7 +51,8 @@ impl CommonArgs {
     }
 }
 
-/// Where the Zenoh examples find ghnetd: flattened into `zenoh_echo` and `zenoh_stats`.
+/// Where the Zenoh examples find ghnetd: flattened into `zenoh_subscriber` and
+/// `zenoh_stats`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ZenohArgs {
     /// Zenoh endpoint to connect to: ghnetd's `zenoh.listen` (or a Zenoh router).
@@ -167,6 +162,20 @@ pub fn wait_for_subscriber(
     Ok(())
 }
 
+/// Log lines (ghnetd's, in the demo) to stderr at `info` or `RUST_LOG`, so stdout
+/// stays a clean table; iceoryx2's own logger only for errors (it warns about a
+/// missing config file otherwise).
+pub fn log_to_stderr() {
+    use std::io::IsTerminal;
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env();
+    tracing_subscriber::fmt()
+        .with_env_filter(filter.unwrap_or_else(|_| "info".into()))
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .init();
+    iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
+}
+
 /// Nanoseconds since the Unix epoch (`CLOCK_REALTIME`), the unit of
 /// [`VelocitySample::timestamp_ns`].
 pub fn now_ns() -> u64 {
@@ -227,32 +236,85 @@ impl Vehicle {
     }
 }
 
-/// The live heading table printed by `subscriber` and `demo`.
+/// The live heading table of `subscriber`, `zenoh_subscriber` and `demo`: one row per
+/// heading, one [`Column`](table::Column) per quantity. To show another estimate beside
+/// ghnet's (plain atan2 is there already; a Kalman filter, say), add a column.
 pub mod table {
     use super::*;
 
+    /// One column: its title, its width, and what a heading shows in it.
+    pub struct Column {
+        /// Title, right-aligned over the cells.
+        pub title: &'static str,
+        /// Characters.
+        pub width: usize,
+        /// The cell of heading `h`, received `latency` after its sample's timestamp.
+        pub cell: fn(h: &HeadingEstimate, latency: Duration) -> String,
+    }
+
+    /// The columns, left to right.
+    pub const COLUMNS: &[Column] = &[
+        Column {
+            title: "seq",
+            width: 10,
+            cell: |h, _| h.seq.to_string(),
+        },
+        Column {
+            title: "heading°",
+            width: 8,
+            cell: |h, _| format!("{:.2}", h.heading_deg),
+        },
+        Column {
+            title: "σ°",
+            width: 6,
+            cell: |h, _| format!("{:.2}", h.heading_std_deg),
+        },
+        Column {
+            title: "atan2°",
+            width: 7,
+            cell: |h, _| format!("{:.2}", h.atan2_deg),
+        },
+        Column {
+            title: "speed m/s",
+            width: 10,
+            cell: |h, _| format!("{:.3}", h.speed),
+        },
+        Column {
+            title: "status",
+            width: 12,
+            cell: |h, _| status(h),
+        },
+        Column {
+            title: "latency",
+            width: 9,
+            cell: |_, l| format!("{l:.1?}"),
+        },
+    ];
+
     /// Column titles, aligned with [`row`].
-    pub const HEADER: &str =
-        "       seq  heading°      σ°   atan2°   speed m/s  status        latency";
+    pub fn header() -> String {
+        line(COLUMNS.iter().map(|c| c.title.to_owned()))
+    }
 
     /// One heading as a table row; `latency` is from its sample's timestamp to receipt.
     pub fn row(h: &HeadingEstimate, latency: Duration) -> String {
-        let status = match h.heading_status() {
-            Some(s) => format!("{s:?}"),
-            None => format!("unknown({})", h.status),
-        };
-        format!(
-            "{:>10}  {:>8.2}  {:>6.2}  {:>7.2}  {:>10.3}  {:<12}  {:>9.1?}",
-            h.seq, h.heading_deg, h.heading_std_deg, h.atan2_deg, h.speed, status, latency
-        )
+        line(COLUMNS.iter().map(|c| (c.cell)(h, latency)))
     }
 
-    /// Whether a heading is usable as a heading (status `Ok` or `LowSpeed`).
-    pub fn has_heading(h: &HeadingEstimate) -> bool {
-        matches!(
-            h.heading_status(),
-            Some(HeadingStatus::Ok | HeadingStatus::LowSpeed)
-        )
+    fn line(cells: impl Iterator<Item = String>) -> String {
+        let padded: Vec<String> = COLUMNS
+            .iter()
+            .zip(cells)
+            .map(|(c, text)| format!("{text:>width$}", width = c.width))
+            .collect();
+        padded.join("  ")
+    }
+
+    fn status(h: &HeadingEstimate) -> String {
+        match h.heading_status() {
+            Some(s) => format!("{s:?}"),
+            None => format!("unknown({})", h.status),
+        }
     }
 }
 
@@ -316,233 +378,5 @@ impl TablePrinter {
         let rows = self.rows.clone();
         self.thread.join().expect("table thread panicked")?;
         Ok(rows.load(Relaxed))
-    }
-}
-
-/// One answer as `soak` records it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Answer {
-    /// Echoed sequence number.
-    pub seq: u64,
-    /// Sample timestamp → receipt, ns.
-    pub latency_ns: u64,
-}
-
-/// Collects every heading of one source on a thread of its own.
-#[derive(Debug)]
-pub struct Collector {
-    thread: JoinHandle<anyhow::Result<Vec<Answer>>>,
-}
-
-impl Collector {
-    /// Starts collecting; returns once the subscriber exists. The thread ends when
-    /// nothing arrived for `idle` (after a first answer; before it, it waits
-    /// `startup`), or `idle / 4` after the answer to `expected - 1` (so a late
-    /// duplicate is still seen).
-    pub fn start(
-        ipc: &IpcConfig,
-        source: &str,
-        expected: u64,
-        startup: Duration,
-        idle: Duration,
-    ) -> anyhow::Result<Self> {
-        let (ready_tx, ready_rx) = mpsc::channel();
-        let (ipc, source) = (ipc.clone(), source.to_owned());
-        let thread = std::thread::spawn(move || -> anyhow::Result<Vec<Answer>> {
-            let headings = HeadingSubscriber::new(&ipc, &source)?;
-            ready_tx.send(())?;
-            let mut got = Vec::with_capacity(expected as usize);
-            let mut timeout = startup;
-            while let Some(h) = headings.recv_timeout(timeout)? {
-                let latency_ns = latency_since(h.timestamp_ns).as_nanos() as u64;
-                got.push(Answer {
-                    seq: h.seq,
-                    latency_ns,
-                });
-                let done = h.seq + 1 >= expected && got.len() as u64 >= expected;
-                timeout = if done { idle / 4 } else { idle };
-            }
-            Ok(got)
-        });
-        if ready_rx.recv().is_err() {
-            return Err(thread.join().expect("collector panicked").unwrap_err());
-        }
-        Ok(Self { thread })
-    }
-
-    /// Waits for the thread to end; the answers in arrival order.
-    pub fn join(self) -> anyhow::Result<Vec<Answer>> {
-        self.thread.join().expect("collector panicked")
-    }
-}
-
-/// Nearest-rank latency percentiles.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Percentiles {
-    /// Number of values.
-    pub count: usize,
-    /// Median.
-    pub p50: Duration,
-    /// 99th percentile.
-    pub p99: Duration,
-    /// 99.9th percentile.
-    pub p999: Duration,
-    /// Largest value.
-    pub max: Duration,
-}
-
-impl Percentiles {
-    /// Percentiles of `values_ns`; `None` when empty.
-    ///
-    /// ```
-    /// # use ghnet_examples::Percentiles;
-    /// let p = Percentiles::of((1..=1000).collect()).unwrap();
-    /// assert_eq!(p.p50.as_nanos(), 500);
-    /// assert_eq!(p.p99.as_nanos(), 990);
-    /// assert_eq!(p.p999.as_nanos(), 999);
-    /// assert_eq!(p.max.as_nanos(), 1000);
-    /// ```
-    pub fn of(mut values_ns: Vec<u64>) -> Option<Self> {
-        if values_ns.is_empty() {
-            return None;
-        }
-        values_ns.sort_unstable();
-        let n = values_ns.len();
-        let rank = |q: f64| {
-            let i = ((q * n as f64).ceil() as usize).clamp(1, n) - 1;
-            Duration::from_nanos(values_ns[i])
-        };
-        Some(Self {
-            count: n,
-            p50: rank(0.50),
-            p99: rank(0.99),
-            p999: rank(0.999),
-            max: rank(1.0),
-        })
-    }
-}
-
-impl fmt::Display for Percentiles {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "p50 {:.1?}  p99 {:.1?}  p99.9 {:.1?}  max {:.1?}  (n={})",
-            self.p50, self.p99, self.p999, self.max, self.count
-        )
-    }
-}
-
-/// A `ghnetd` child process. [`stop`](Self::stop) sends SIGTERM and reaps it; drop
-/// kills and reaps it (an unreaped zombie keeps its iceoryx2 liveness lock).
-#[derive(Debug)]
-pub struct SpawnedDaemon {
-    child: Option<Child>,
-}
-
-impl SpawnedDaemon {
-    /// Starts `binary args…` with stdin closed and its log (stderr) passed through.
-    pub fn spawn(binary: &Path, args: &[String]) -> anyhow::Result<Self> {
-        let child = Command::new(binary)
-            .args(args)
-            .stdin(Stdio::null())
-            .spawn()
-            .with_context(|| format!("cannot start {}", binary.display()))?;
-        Ok(Self { child: Some(child) })
-    }
-
-    /// `ghnetd --service-prefix PREFIX --discovery false --source S…`: serves exactly
-    /// `sources` from the start.
-    pub fn ghnetd(binary: &Path, prefix: &str, sources: &[String]) -> anyhow::Result<Self> {
-        let mut args = vec!["--service-prefix".into(), prefix.into()];
-        args.extend(["--discovery".into(), "false".into()]);
-        for s in sources {
-            args.extend(["--source".into(), s.clone()]);
-        }
-        Self::spawn(binary, &args)
-    }
-
-    /// Whether the process has exited already (e.g. bad config).
-    pub fn has_exited(&mut self) -> bool {
-        let child = self.child.as_mut().expect("child present until stop/drop");
-        !matches!(child.try_wait(), Ok(None))
-    }
-
-    /// SIGTERM, then waits up to `grace` for the exit (after that it is killed and
-    /// reaped on drop, and this returns an error).
-    pub fn stop(mut self, grace: Duration) -> anyhow::Result<ExitStatus> {
-        let child = self.child.as_mut().expect("child present until stop/drop");
-        // SAFETY: kill(2) on our own child, not yet reaped, so its pid is not reused.
-        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
-        let t0 = Instant::now();
-        while t0.elapsed() < grace {
-            if let Some(status) = child.try_wait()? {
-                self.child = None;
-                return Ok(status);
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        anyhow::bail!("ghnetd ignored SIGTERM for {grace:?} and was killed")
-    }
-}
-
-impl Drop for SpawnedDaemon {
-    fn drop(&mut self) {
-        if let Some(mut child) = self.child.take() {
-            let _ = child.kill();
-            let _ = child.wait();
-        }
-    }
-}
-
-/// Exactly-once accounting of the answers to sequence numbers `0..sent`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Tally {
-    /// Sequence numbers in `0..sent` that got no answer.
-    pub lost: u64,
-    /// Extra answers to a sequence number that was already answered.
-    pub duplicates: u64,
-    /// Answers whose sequence number was never sent (crossed sources, corruption).
-    pub unexpected: u64,
-}
-
-impl Tally {
-    /// Counts the answers `seqs` against the samples `0..sent`.
-    ///
-    /// ```
-    /// # use ghnet_examples::Tally;
-    /// let t = Tally::of(4, [0, 1, 1, 3, 9]);
-    /// assert_eq!((t.lost, t.duplicates, t.unexpected), (1, 1, 1));
-    /// assert!(!t.is_exactly_once());
-    /// assert!(Tally::of(3, [2, 0, 1]).is_exactly_once());
-    /// ```
-    pub fn of(sent: u64, seqs: impl IntoIterator<Item = u64>) -> Self {
-        let mut seen = vec![0u32; sent as usize];
-        let mut t = Tally::default();
-        for seq in seqs {
-            match seen.get_mut(seq as usize) {
-                Some(c) if seq < sent => {
-                    t.duplicates += u64::from(*c > 0);
-                    *c += 1;
-                }
-                _ => t.unexpected += 1,
-            }
-        }
-        t.lost = seen.iter().filter(|&&c| c == 0).count() as u64;
-        t
-    }
-
-    /// No loss, no duplicate, nothing unexpected.
-    pub fn is_exactly_once(&self) -> bool {
-        *self == Tally::default()
-    }
-}
-
-impl fmt::Display for Tally {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "lost {}  duplicates {}  unexpected {}",
-            self.lost, self.duplicates, self.unexpected
-        )
     }
 }

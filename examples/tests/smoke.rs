@@ -11,7 +11,7 @@ fn demo_answers_every_sample_and_exits_zero() {
         .stdin(Stdio::null());
     // While the default model's embedded weights are being retrained, use the model
     // the cross-process tests fall back to.
-    if let Some(name) = ghnet_tests::test_model().flag {
+    if let Some(name) = ghnet_testkit::test_model().flag {
         cmd.args(["--model", name]);
     }
     let out = cmd.output().expect("run demo");

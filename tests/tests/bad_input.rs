@@ -4,19 +4,19 @@
 //! undecodable Zenoh payloads at a real `ZenohHeadingSubscriber`.
 //!
 //! A case is a list of samples sent after one good sample (seq 0) and followed by
-//! one good sample; [`run_case`] checks every answer and then the counters of the
-//! daemon's final stats line (after SIGTERM), so a case also proves that ghnetd is
-//! still running and exits cleanly.
+//! one good sample; [`run_case`] checks every answer, then the daemon's counters
+//! (`@ghnetd/stats`), then that ghnetd exits cleanly on SIGTERM.
 
 use std::time::Duration;
 
 use ghnet_client::zenoh::Wait;
 use ghnet_client::{
-    flags, DecodeError, HeadingEstimate, HeadingStatus, HeadingSubscriber, VelocityPublisher,
-    VelocitySample, ZenohHeadingSubscriber,
+    flags, DecodeError, HeadingEstimate, HeadingStatus, HeadingSubscriber, VelocitySample,
+    ZenohHeadingSubscriber,
 };
-use ghnet_tests::{
-    now_ns, recv_answer, unique_prefix, zenoh_barrier, zenoh_session, Daemon, Namespace, WATCHDOG,
+use ghnet_testkit::{
+    free_tcp_port, now_ns, recv_answer, wait_until, zenoh_barrier, Ghnetd, Listen, OneSource,
+    WATCHDOG,
 };
 
 /// What a sample's answer must be.
@@ -49,7 +49,7 @@ fn good(t0: u64, seq: u64) -> VelocitySample {
 
 /// The next answer that is not a `Stale` notice (ghnetd sends one when a source has
 /// been silent for `sources.stale_after_ms`; a loaded machine may pause that long).
-fn next_answer(headings: &HeadingSubscriber, daemon: &Daemon) -> HeadingEstimate {
+fn next_answer(headings: &HeadingSubscriber, daemon: &Ghnetd) -> HeadingEstimate {
     daemon.assert_running();
     recv_answer(headings, WATCHDOG).unwrap_or_else(|| {
         daemon.assert_running();
@@ -95,28 +95,18 @@ fn check(want: Want, h: &HeadingEstimate, what: &str) {
     }
 }
 
-/// Runs one case through a fresh ghnetd (iceoryx2 only): good sample 0, then
-/// `case(t0)`, then a good sample one step after the case's last one in seq and time
-/// (so it adds no gap and is not backwards). Checks every
-/// answer (status, echoed seq and timestamp) and the final counters.
+/// Runs one case through a fresh ghnetd: good sample 0, then `case(t0)`, then a good
+/// sample one step after the case's last one in seq and time (so it adds no gap and
+/// is not backwards). Checks every answer (status, echoed seq and timestamp), the
+/// counters, and a clean exit.
 fn run_case(name: &str, case: impl FnOnce(u64) -> Vec<(VelocitySample, Want)>, adds: Adds) {
-    let ns = Namespace::new();
-    let ipc = ns.ipc();
     let source = "bad";
-    let daemon = Daemon::start(
-        &ns,
-        &[
-            "--source",
-            source,
-            "--discovery",
-            "false",
-            "--zenoh",
-            "false",
-        ],
-    );
-    let headings = HeadingSubscriber::new(&ipc, source).unwrap();
-    let gnss = VelocityPublisher::new(&ipc, source).unwrap();
-    daemon.wait_serving(&gnss);
+    let OneSource {
+        ns: _ns,
+        daemon,
+        headings,
+        gnss,
+    } = OneSource::start(source, |b| b);
 
     let t0 = now_ns();
     let mut samples = vec![(good(t0, 0), Want::Moving)];
@@ -145,12 +135,9 @@ fn run_case(name: &str, case: impl FnOnce(u64) -> Vec<(VelocitySample, Want)>, a
         "{name}: exactly one answer per sample"
     );
 
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{name}: {status:?}\n{log}");
-    let c = ghnet_tests::last_stats_in(&log, source).unwrap_or_else(|| panic!("{log}"));
     let n = samples.len() as u64;
+    let c = daemon.wait_for_counters(source, |c| c["received"] == n);
     let got = [
-        c["received"],
         c["answered"],
         c["send_errors"],
         c["invalid"],
@@ -160,7 +147,6 @@ fn run_case(name: &str, case: impl FnOnce(u64) -> Vec<(VelocitySample, Want)>, a
     ];
     let want = [
         n,
-        n,
         0,
         adds.invalid,
         adds.gaps,
@@ -169,8 +155,9 @@ fn run_case(name: &str, case: impl FnOnce(u64) -> Vec<(VelocitySample, Want)>, a
     ];
     assert_eq!(
         got, want,
-        "{name}: [received, answered, send_errors, invalid, gaps, duplicates, backwards]\n{log}"
+        "{name}: [answered, send_errors, invalid, gaps, duplicates, backwards] of {n}: {c:?}"
     );
+    daemon.stop();
 }
 
 /// Sample `seq` at `t0 + seq` ms with `f` applied.
@@ -318,15 +305,12 @@ fn exactly_zero_velocity_is_stationary() {
 /// from the previous sample: each answer depends on its own sample only.
 #[test]
 fn zero_velocity_answer_carries_no_held_heading() {
-    let ns = Namespace::new();
-    let ipc = ns.ipc();
-    let daemon = Daemon::start(
-        &ns,
-        &["--source", "z", "--discovery", "false", "--zenoh", "false"],
-    );
-    let headings = HeadingSubscriber::new(&ipc, "z").unwrap();
-    let gnss = VelocityPublisher::new(&ipc, "z").unwrap();
-    daemon.wait_serving(&gnss);
+    let OneSource {
+        ns: _ns,
+        daemon,
+        headings,
+        gnss,
+    } = OneSource::start("z", |b| b.listen(Listen::Off));
     let t0 = now_ns();
     let mut zero_answers = Vec::new();
     // Zero velocity after heading east, then after heading west: same answer.
@@ -532,44 +516,32 @@ fn sequence_jumps_to_u64_max_and_back_saturate_the_counters() {
 /// never skips silently) and then decodes the daemon's next valid heading.
 #[test]
 fn undecodable_zenoh_payloads_are_errors_and_the_subscriber_goes_on() {
-    let ns = Namespace::new();
-    let prefix = unique_prefix("bz");
-    let ipc = ns.ipc().with_prefix(&prefix).unwrap();
     let source = "zg";
-    let daemon = Daemon::start(
-        &ns,
-        &[
-            "--source",
-            source,
-            "--discovery",
-            "false",
-            "--service-prefix",
-            &prefix,
-        ],
-    );
-    let gnss = VelocityPublisher::new(&ipc, source).unwrap();
-    let ice = HeadingSubscriber::new(&ipc, source).unwrap();
-    daemon.wait_serving(&gnss);
+    let OneSource {
+        ns: _ns,
+        daemon,
+        headings: ice,
+        gnss,
+    } = OneSource::start(source, |b| b);
+    let ipc = daemon.ipc().clone();
 
     // The consumer: connected to the daemon and listening for the garbage publisher.
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let config =
-        ghnet_client::peer_config(std::slice::from_ref(&endpoint), &[daemon.zenoh_endpoint()])
-            .unwrap();
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let config = ghnet_client::peer_config(
+        std::slice::from_ref(&endpoint),
+        &[daemon.zenoh_endpoint().to_owned()],
+    )
+    .unwrap();
     let consumer = ghnet_client::zenoh::open(config).wait().unwrap();
     let sub = ZenohHeadingSubscriber::new(&consumer, &ipc, source).unwrap();
     zenoh_barrier(&consumer, &ipc);
     // Someone else on the network publishing on the same key.
-    let rogue = zenoh_session(&endpoint);
+    let rogue_config = ghnet_client::peer_config(&[], std::slice::from_ref(&endpoint)).unwrap();
+    let rogue = ghnet_client::zenoh::open(rogue_config).wait().unwrap();
     let key = ipc.zenoh_heading_key(source).unwrap();
     let put = |bytes: &[u8]| rogue.put(key.as_str(), bytes.to_vec()).wait().unwrap();
     // Until the rogue session knows the consumer's subscriber, its puts go nowhere.
-    ghnet_tests::wait_until("a rogue payload at the consumer", || {
+    wait_until("a rogue payload at the consumer", || {
         put(b"x");
         matches!(
             sub.recv_timeout(Duration::from_millis(100)),

@@ -4,15 +4,13 @@
 use std::ffi::OsString;
 use std::path::PathBuf;
 
-use ghnet_tests::{run_ghnetd, Namespace};
+use ghnet_testkit::{run_ghnetd, test_model, TestNamespace};
 
 /// Runs ghnetd in a fresh namespace with `args`; asserts a non-zero exit and that
 /// stderr is exactly one `error: ...` line; returns that line.
 fn fails_with_one_line(args: &[OsString]) -> String {
-    let ns = Namespace::new();
-    let mut all = ns.daemon_args();
-    all.extend_from_slice(args);
-    let out = run_ghnetd(&all);
+    let ns = TestNamespace::new("config");
+    let out = run_ghnetd(&ns, args);
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(
         !out.status.success(),
@@ -184,7 +182,7 @@ fn missing_model_file_named_in_the_config_file() {
 /// Safetensors bytes of the test model with its weights replaced by `params`
 /// (metadata unchanged), written through the models crate's weights API.
 fn model_file(dir: &std::path::Path, params: &ghnet_models::params::ParamSet) -> PathBuf {
-    let meta = ghnet_tests::test_model().model.meta().clone();
+    let meta = test_model().model.meta().clone();
     let file = dir.join("model.safetensors");
     ghnet_models::weights::write(&file, params, &meta).unwrap();
     file
@@ -193,7 +191,7 @@ fn model_file(dir: &std::path::Path, params: &ghnet_models::params::ParamSet) ->
 #[test]
 fn model_file_with_wrong_shapes_names_the_tensor() {
     let dir = tempfile::tempdir().unwrap();
-    let model = &ghnet_tests::test_model().model;
+    let model = &test_model().model;
     // One more output of the first convolution: conv1.* get 1 more row than the
     // metadata's architecture says.
     let mut arch = model.meta().architecture.clone();
@@ -208,7 +206,7 @@ fn model_file_with_wrong_shapes_names_the_tensor() {
 #[test]
 fn model_file_with_non_finite_weights_names_the_tensor() {
     let dir = tempfile::tempdir().unwrap();
-    let mut params = ghnet_tests::test_model().model.params().clone();
+    let mut params = test_model().model.params().clone();
     let r = params.range(params.index_of("fc1.bias").unwrap());
     params.data_mut()[r.start] = f32::NAN;
     let file = model_file(dir.path(), &params);
@@ -225,11 +223,27 @@ fn model_path_that_is_not_a_model() {
     let empty = dir.path().join("empty.safetensors");
     std::fs::write(&empty, b"").unwrap();
     let truncated = dir.path().join("truncated.safetensors");
-    let bytes = ghnet_tests::test_model().model.to_safetensors();
+    let bytes = test_model().model.to_safetensors();
     std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
     for path in [empty, truncated, dir.path().to_path_buf()] {
         let line = fails_with_one_line(&["--model".into(), path.clone().into()]);
         assert!(line.starts_with("error: model.name"), "{path:?}: {line}");
         assert!(line.contains(&*path.to_string_lossy()), "{line}");
     }
+}
+
+#[test]
+fn print_config_prints_the_effective_toml() {
+    let ns = TestNamespace::new("printcfg");
+    let args = ["--print-config", "--source", "gnss0", "--max-speed", "50"];
+    let out = run_ghnetd(&ns, &args.map(OsString::from));
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    let cfg = ghnetd::Config::from_toml(&text).unwrap();
+    assert_eq!(cfg.sources.static_sources, vec!["gnss0"]);
+    assert_eq!(cfg.model.max_speed, 50.0);
+    assert_eq!(
+        cfg.ipc.iceoryx2_global_prefix.as_deref(),
+        Some(ns.global_prefix())
+    );
 }

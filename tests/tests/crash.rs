@@ -4,11 +4,9 @@
 use std::collections::BTreeSet;
 
 use ghnet_client::{HeadingStatus, HeadingSubscriber, VelocityPublisher};
-use ghnet_tests::{
-    list_nodes, recv_answer, wait_until, ChildPublisher, Daemon, Namespace, WATCHDOG,
+use ghnet_testkit::{
+    list_nodes, now_ns, recv_answer, wait_until, ChildPublisher, Ghnetd, TestNamespace, WATCHDOG,
 };
-
-use crate::TEST_PUBLISHER;
 
 /// Receives until an answer (not a `Stale` message) with `seq >= min_seq` arrives;
 /// returns its seq.
@@ -28,7 +26,7 @@ fn answer_at_least(headings: &HeadingSubscriber, min_seq: u64) -> u64 {
 }
 
 /// Names of the namespace's files in `/dev/shm`.
-fn shm_files(ns: &Namespace) -> BTreeSet<String> {
+fn shm_files(ns: &TestNamespace) -> BTreeSet<String> {
     std::fs::read_dir("/dev/shm")
         .unwrap()
         .flatten()
@@ -39,12 +37,12 @@ fn shm_files(ns: &Namespace) -> BTreeSet<String> {
 
 #[test]
 fn daemon_kill9_while_publishing_then_restart_resumes() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("kill9");
     let ipc = ns.ipc();
     let headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
-    let mut publisher = ChildPublisher::spawn(TEST_PUBLISHER, &ns, "veh", 0, 200);
+    let publisher = ChildPublisher::spawn(&ns, "veh", 0, 200);
 
-    let first = Daemon::start(&ns, &[]);
+    let first = Ghnetd::builder(&ns).start();
     let seen = answer_at_least(&headings, 0);
     let (alive, _) = list_nodes(&ns);
     let daemon_node = alive
@@ -69,7 +67,7 @@ fn daemon_kill9_while_publishing_then_restart_resumes() {
     }
 
     // No cleanup by hand: the new daemon removes the dead one's resources itself.
-    let second = Daemon::start(&ns, &[]);
+    let second = Ghnetd::builder(&ns).start();
     let resumed = answer_at_least(&headings, seen + 1);
     eprintln!("answered seq {seen} before kill -9, {resumed} after restart");
     // Only the new daemon's heading publisher is left on the service, the dead node
@@ -93,21 +91,19 @@ fn daemon_kill9_while_publishing_then_restart_resumes() {
     );
     answer_at_least(&headings, resumed + 1);
     assert!(publisher.is_running());
-
-    let (status, log) = second.terminate();
-    assert!(status.success(), "{status:?}\n{log}");
+    second.stop();
 }
 
 #[test]
 fn publisher_kill9_daemon_goes_on_and_a_new_publisher_is_served() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("pubkill9");
     let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &[]);
+    let daemon = Ghnetd::builder(&ns).start();
     let headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
     let other_headings = HeadingSubscriber::new(&ipc, "other").unwrap();
-    let _other = ChildPublisher::spawn(TEST_PUBLISHER, &ns, "other", 0, 100);
+    let _other = ChildPublisher::spawn(&ns, "other", 0, 100);
 
-    let publisher = ChildPublisher::spawn(TEST_PUBLISHER, &ns, "veh", 0, 200);
+    let publisher = ChildPublisher::spawn(&ns, "veh", 0, 200);
     let last_before = answer_at_least(&headings, 0);
     daemon.wait_for_log("source added");
     publisher.kill9();
@@ -128,7 +124,7 @@ fn publisher_kill9_daemon_goes_on_and_a_new_publisher_is_served() {
     eprintln!("Stale for veh at seq {}; other at {other_seq}", stale.seq);
 
     // Same name, new process: rediscovered and served.
-    let _again = ChildPublisher::spawn(TEST_PUBLISHER, &ns, "veh", 1 << 32, 200);
+    let _again = ChildPublisher::spawn(&ns, "veh", 1 << 32, 200);
     answer_at_least(&headings, 1 << 32);
     daemon.wait_for_log_count("source added", 2);
 
@@ -136,7 +132,7 @@ fn publisher_kill9_daemon_goes_on_and_a_new_publisher_is_served() {
     // a restarted publisher next to its not-yet-cleaned predecessor).
     let gnss = VelocityPublisher::new(&ipc, "veh").unwrap();
     gnss.send(ghnet_client::VelocitySample::new(
-        ghnet_tests::now_ns(),
+        now_ns(),
         1 << 40,
         1.0,
         1.0,
@@ -144,8 +140,5 @@ fn publisher_kill9_daemon_goes_on_and_a_new_publisher_is_served() {
     ))
     .unwrap();
     answer_at_least(&headings, 1 << 40);
-
-    assert!(daemon.is_running());
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{status:?}\n{log}");
+    daemon.stop();
 }

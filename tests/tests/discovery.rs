@@ -5,7 +5,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use ghnet_client::{HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
-use ghnet_tests::{now_ns, wait_until, Daemon, Namespace, WATCHDOG};
+use ghnet_testkit::{now_ns, wait_until, Ghnetd, TestNamespace, WATCHDOG};
 
 fn ping(gnss: &VelocityPublisher, headings: &HeadingSubscriber, seq: u64) {
     gnss.send(VelocitySample::new(now_ns(), seq, 0.0, 2.0, 0.0))
@@ -17,17 +17,16 @@ fn ping(gnss: &VelocityPublisher, headings: &HeadingSubscriber, seq: u64) {
 
 #[test]
 fn source_appearing_at_run_time_is_served() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("late");
     let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &[]); // discovery on, no static sources
-    daemon.wait_for_log("ghnetd starting");
+    let daemon = Ghnetd::builder(&ns).start(); // discovery on, no static sources
     assert!(!daemon.log().contains("source added"), "{}", daemon.log());
 
     let headings = HeadingSubscriber::new(&ipc, "late").unwrap();
     let gnss = VelocityPublisher::new(&ipc, "late").unwrap();
     daemon.wait_serving(&gnss);
     ping(&gnss, &headings, 0);
-    daemon.wait_for_log("source=late");
+    daemon.wait_for_counters("late", |c| c["answered"] == 1);
 
     // A second source while the first is served (the daemon re-arms its wait set).
     let headings2 = HeadingSubscriber::new(&ipc, "later").unwrap();
@@ -56,9 +55,9 @@ const WINDOW: u64 = 32;
 
 #[test]
 fn two_sources_at_once_never_cross() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("cross");
     let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &[]);
+    let daemon = Ghnetd::builder(&ns).start();
     let vehicles = [
         Vehicle {
             name: "alpha",
@@ -121,21 +120,16 @@ fn two_sources_at_once_never_cross() {
                         );
                         gnss.send(s).unwrap();
                     }
-                    rx.join()
+                    let answers = rx.join();
+                    // The daemon's side, while the source is still served: it
+                    // received and answered exactly this vehicle's samples.
+                    let c = daemon.wait_for_counters(v.name, |c| c["received"] >= COUNT);
+                    let counts = (c["received"], c["answered"]);
+                    assert_eq!(counts, (COUNT, COUNT), "{}: {c:?}", v.name);
+                    answers
                 });
                 receiver.expect("receiver assertions");
             });
         }
     });
-    // The daemon's side: each source received and answered exactly its own samples
-    // (from the `stats` line, or the `source removed` line once the publisher is gone).
-    for v in &vehicles {
-        let c = daemon.wait_for_stats(v.name, |c| c["received"] >= COUNT);
-        assert_eq!(
-            (c["received"], c["answered"]),
-            (COUNT, COUNT),
-            "{}: {c:?}",
-            v.name
-        );
-    }
 }

@@ -1,9 +1,23 @@
-//! A published sample comes back as the heading `ghnet_models` computes in-process.
+//! A published sample comes back as the heading `ghnet_models` computes in-process,
+//! exactly once, in order, with its `seq` and timestamp echoed.
 
-use ghnet_client::{HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
+use std::time::Duration;
+
+use ghnet_client::{flags, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
 use ghnet_lab::sim::{simulate_realistic, RealisticParams};
 use ghnet_models::{Predictor, Status, StatusPolicy};
-use ghnet_tests::{close, now_ns, test_model, Daemon, Namespace, WATCHDOG};
+use ghnet_testkit::{now_ns, test_model, Ghnetd, OneSource, TestNamespace, WATCHDOG};
+
+/// `|a - b| <= 1e-6 · max(1, |b|)`, both NaN counting as equal, and headings that
+/// differ by a full turn (359.9999… vs 0) counting as equal when `wrap_360`.
+fn close(a: f32, b: f32, wrap_360: bool) -> bool {
+    if a.is_nan() || b.is_nan() {
+        return a.is_nan() && b.is_nan();
+    }
+    let tol = 1e-6 * b.abs().max(1.0);
+    let d = (a - b).abs();
+    d <= tol || (wrap_360 && (d - 360.0).abs() <= 1e-6 * 360.0)
+}
 
 /// models' status → the wire status the daemon must send.
 fn wire(s: Status) -> HeadingStatus {
@@ -17,12 +31,12 @@ fn wire(s: Status) -> HeadingStatus {
 
 #[test]
 fn heading_equals_in_process_model_and_echoes_seq_and_timestamp() {
-    let ns = Namespace::new();
-    let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &["--source", "echo", "--discovery", "false"]);
-    let headings = HeadingSubscriber::new(&ipc, "echo").unwrap();
-    let gnss = VelocityPublisher::new(&ipc, "echo").unwrap();
-    daemon.wait_serving(&gnss);
+    let OneSource {
+        ns: _ns,
+        daemon,
+        headings,
+        gnss,
+    } = OneSource::start("echo", |b| b);
 
     // Every compass direction, the status boundaries, and a realistic track.
     let mut inputs: Vec<(f32, f32)> = vec![
@@ -109,16 +123,13 @@ fn heading_equals_in_process_model_and_echoes_seq_and_timestamp() {
 /// batch kernel's rounding), including the invalid and stationary ones.
 #[test]
 fn sources_waking_together_get_their_own_answers_in_order() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("together");
     let ipc = ns.ipc();
     const SOURCES: usize = 5;
     const PER_SOURCE: u64 = 60; // 300 in all: more than one round of 128
     let names: Vec<String> = (0..SOURCES).map(|k| format!("burst{k}")).collect();
-    let mut args = vec!["--discovery", "false"];
-    for n in &names {
-        args.extend(["--source", n.as_str()]);
-    }
-    let daemon = Daemon::start(&ns, &args);
+    let builder = Ghnetd::builder(&ns).discovery(false);
+    let daemon = names.iter().fold(builder, |b, n| b.source(n)).start();
     let subs: Vec<_> = names
         .iter()
         .map(|n| HeadingSubscriber::new(&ipc, n).unwrap())
@@ -146,8 +157,7 @@ fn sources_waking_together_get_their_own_answers_in_order() {
     };
     // ghnetd stopped while the samples arrive: when it continues, every source's
     // listener has fired and it sees them all in one wake-up.
-    let signal = |sig| assert_eq!(unsafe { libc::kill(daemon.pid() as i32, sig) }, 0);
-    signal(libc::SIGSTOP);
+    daemon.signal(libc::SIGSTOP);
     let t0 = now_ns();
     for i in 0..PER_SOURCE {
         for (k, p) in pubs.iter().enumerate() {
@@ -159,7 +169,7 @@ fn sources_waking_together_get_their_own_answers_in_order() {
     for p in &pubs {
         p.notify().unwrap();
     }
-    signal(libc::SIGCONT);
+    daemon.signal(libc::SIGCONT);
 
     let tm = test_model();
     let mut predictor = Predictor::new(tm.model.clone()).with_policy(StatusPolicy::default());
@@ -199,4 +209,79 @@ fn sources_waking_together_get_their_own_answers_in_order() {
         );
     }
     drop(daemon);
+}
+
+/// Ping-pong with an invalid sample every tenth, then a burst in one notification:
+/// every sample answered once, in order; a gap, a duplicate and time going backwards
+/// are counted.
+#[test]
+fn ping_pong_and_a_burst_are_answered_once_each_and_counted() {
+    let OneSource {
+        ns: _ns,
+        daemon,
+        headings,
+        gnss,
+    } = OneSource::start("pingpong", |b| b);
+    let sample = |seq: u64| {
+        let mut s = VelocitySample::new(1_000_000 + seq * 100, seq, 5.0, 5.0, 0.0);
+        s.speed_accuracy = 0.1;
+        s
+    };
+    let n = 100u64;
+    for seq in 0..n {
+        let mut s = sample(seq);
+        if seq % 10 == 9 {
+            s.v_north = f32::NAN; // invalid input is answered, not dropped
+        }
+        gnss.send(s).unwrap();
+        let h = headings.recv_timeout(WATCHDOG).unwrap().expect("answer");
+        assert_eq!((h.seq, h.timestamp_ns), (s.seq, s.timestamp_ns));
+        if seq % 10 == 9 {
+            assert_eq!(h.heading_status(), Some(HeadingStatus::InvalidInput));
+            assert!(h.heading_deg.is_nan(), "seq {seq}: {h:?}");
+        } else {
+            let moving = matches!(
+                h.heading_status(),
+                Some(HeadingStatus::Ok | HeadingStatus::LowSpeed)
+            );
+            assert!(
+                moving && (h.atan2_deg - 45.0).abs() < 1e-3,
+                "seq {seq}: {h:?}"
+            );
+            assert!((0.0..360.0).contains(&h.heading_deg), "seq {seq}: {h:?}");
+        }
+    }
+    // A burst (below the subscriber buffer) in one notification: all answered, in order.
+    for seq in n..2 * n {
+        gnss.publish(sample(seq)).unwrap();
+    }
+    gnss.notify().unwrap();
+    for seq in n..2 * n {
+        let h = headings.recv_timeout(WATCHDOG).unwrap().expect("answer");
+        assert_eq!(h.seq, seq);
+    }
+    assert!(headings
+        .recv_timeout(Duration::from_millis(200))
+        .unwrap()
+        .is_none());
+
+    gnss.send(sample(2 * n + 5)).unwrap(); // 5 missing
+    gnss.send(sample(2 * n + 5)).unwrap(); // a duplicate
+    let mut back = sample(2 * n + 6);
+    (back.timestamp_ns, back.flags) = (1, flags::SIMULATED);
+    gnss.send(back).unwrap();
+    for _ in 0..3 {
+        headings.recv_timeout(WATCHDOG).unwrap().expect("answer");
+    }
+    // 203 received and answered; 10 NaN and 1 backwards invalid.
+    let c = daemon.wait_for_counters("pingpong", |c| c["received"] == 2 * n + 3);
+    let got = [
+        c["answered"],
+        c["invalid"],
+        c["gaps"],
+        c["duplicates"],
+        c["backwards"],
+    ];
+    assert_eq!(got, [2 * n + 3, 11, 5, 1, 1], "{c:?}");
+    daemon.stop();
 }

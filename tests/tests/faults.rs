@@ -6,16 +6,13 @@ use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use ghnet_client::zenoh::Wait;
 use ghnet_client::{
     HeadingStatus, HeadingSubscriber, OpenError, ServiceSettings, VelocityPublisher,
     VelocitySample, VelocitySubscriber, SERVICE_SETTINGS,
 };
-use ghnet_tests::{
-    list_nodes, now_ns, recv_answer, wait_until, ChildSubscriber, Daemon, Namespace, WATCHDOG,
+use ghnet_testkit::{
+    list_nodes, now_ns, recv_answer, wait_until, ChildSubscriber, Ghnetd, TestNamespace, WATCHDOG,
 };
-
-use crate::TEST_SUBSCRIBER;
 
 fn sample(seq: u64) -> VelocitySample {
     VelocitySample::new(now_ns(), seq, 3.0, 4.0, 0.0)
@@ -31,9 +28,9 @@ fn round_trip(gnss: &VelocityPublisher, headings: &HeadingSubscriber, seq: u64) 
 
 #[test]
 fn subscriber_kill9_daemon_goes_on_and_a_new_subscriber_is_served() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("subkill9");
     let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &[]);
+    let daemon = Ghnetd::builder(&ns).start();
     let veh = VelocityPublisher::new(&ipc, "veh").unwrap();
     let other = VelocityPublisher::new(&ipc, "other").unwrap();
     let veh_headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
@@ -41,7 +38,7 @@ fn subscriber_kill9_daemon_goes_on_and_a_new_subscriber_is_served() {
     daemon.wait_serving(&veh);
     daemon.wait_serving(&other);
 
-    let mut child = ChildSubscriber::spawn(TEST_SUBSCRIBER, &ns, "veh");
+    let child = ChildSubscriber::spawn(&ns, "veh");
     let mut seq = 0;
     // Until the child has seen a heading: it is connected and reading.
     loop {
@@ -70,7 +67,7 @@ fn subscriber_kill9_daemon_goes_on_and_a_new_subscriber_is_served() {
     });
 
     // A new subscriber process under the same name gets headings again.
-    let mut again = ChildSubscriber::spawn(TEST_SUBSCRIBER, &ns, "veh");
+    let again = ChildSubscriber::spawn(&ns, "veh");
     let first_new = seq;
     for _ in 0..5 {
         round_trip(&veh, &veh_headings, seq);
@@ -79,18 +76,17 @@ fn subscriber_kill9_daemon_goes_on_and_a_new_subscriber_is_served() {
     assert!(again.answer_at_least(first_new) >= first_new);
     drop(again);
 
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{status:?}\n{log}");
-    let stats = ghnet_tests::last_stats_in(&log, "veh").expect("stats for veh");
-    assert_eq!(stats["send_errors"], 0, "{log}");
-    assert_eq!(stats["answered"], stats["received"], "{log}");
+    let stats = daemon.wait_for_counters("veh", |s| s["received"] == seq);
+    assert_eq!(stats["send_errors"], 0, "{stats:?}");
+    assert_eq!(stats["answered"], stats["received"], "{stats:?}");
+    daemon.stop();
 }
 
 #[test]
 fn a_stuck_subscriber_slows_nobody_and_its_losses_are_counted() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("stuck");
     let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &[]);
+    let daemon = Ghnetd::builder(&ns).start();
     let veh = VelocityPublisher::new(&ipc, "veh").unwrap();
     let other = VelocityPublisher::new(&ipc, "other").unwrap();
     let stuck = HeadingSubscriber::new(&ipc, "veh").unwrap();
@@ -131,19 +127,22 @@ fn a_stuck_subscriber_slows_nobody_and_its_losses_are_counted() {
     assert!(got <= 1 + SERVICE_SETTINGS.subscriber_buffer_size as u64);
     assert!(missed >= n - 1 - SERVICE_SETTINGS.subscriber_buffer_size as u64);
 
-    let stats = daemon.wait_for_stats("veh", |s| s["answered"] >= n);
+    let stats = daemon.wait_for_counters("veh", |s| s["answered"] >= n);
     assert_eq!((stats["received"], stats["send_errors"]), (n, 0));
 }
 
 #[test]
 fn a_silent_source_gets_one_stale_message_and_is_served_again() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("stale");
     let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &["--stale-after-ms", "300"]);
+    let daemon = Ghnetd::builder(&ns)
+        .arg("--stale-after-ms")
+        .arg("300")
+        .start();
     let headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
-    let session = ghnet_tests::zenoh_session(&daemon.zenoh_endpoint());
+    let session = daemon.connect();
     let zen = ghnet_client::ZenohHeadingSubscriber::new(&session, &ipc, "veh").unwrap();
-    ghnet_tests::zenoh_barrier(&session, &ipc);
+    ghnet_testkit::zenoh_barrier(&session, &ipc);
     let gnss = VelocityPublisher::new(&ipc, "veh").unwrap();
     daemon.wait_serving(&gnss);
 
@@ -183,17 +182,8 @@ fn a_silent_source_gets_one_stale_message_and_is_served_again() {
         .recv_timeout(Duration::from_millis(1500))
         .unwrap()
         .is_none());
-    let stats = daemon.wait_for_stats("veh", |s| s["stale"] == 1);
+    let stats = daemon.wait_for_counters("veh", |s| s["stale"] == 1);
     assert_eq!((stats["received"], stats["answered"]), (3, 3));
-    // The stats queryable reports the counter too.
-    let replies = session
-        .get(ipc.zenoh_stats_key().as_str())
-        .wait()
-        .expect("query");
-    let reply = replies.recv_timeout(WATCHDOG).unwrap().expect("a reply");
-    let json: serde_json::Value =
-        serde_json::from_slice(&reply.result().expect("ok").payload().to_bytes()).unwrap();
-    assert_eq!(json["sources"]["veh"]["stale"], 1, "{json}");
 
     // Samples again: answered normally, logged once.
     gnss.send(sample(3)).unwrap();
@@ -209,18 +199,17 @@ fn a_silent_source_gets_one_stale_message_and_is_served_again() {
     assert_eq!(stale.heading_status(), Some(HeadingStatus::Stale));
     assert_eq!(stale.seq, 3);
     daemon.wait_for_log("source removed");
-    let stats = daemon.wait_for_stats("veh", |s| s["stale"] == 2);
-    assert_eq!((stats["received"], stats["answered"]), (4, 4));
-
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{status:?}\n{log}");
+    daemon.stop();
 }
 
 #[test]
 fn stale_off_sends_nothing() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("staleoff");
     let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &["--stale-after-ms", "0"]);
+    let daemon = Ghnetd::builder(&ns)
+        .arg("--stale-after-ms")
+        .arg("0")
+        .start();
     let headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
     let gnss = VelocityPublisher::new(&ipc, "veh").unwrap();
     daemon.wait_serving(&gnss);
@@ -234,12 +223,11 @@ fn stale_off_sends_nothing() {
 
 #[test]
 fn a_second_daemon_on_the_same_prefix_exits_naming_the_first() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("second");
     let ipc = ns.ipc();
-    let first = Daemon::start(&ns, &[]);
-    first.wait_for_log("ghnetd starting");
+    let first = Ghnetd::builder(&ns).start();
 
-    let second = Daemon::start(&ns, &[]);
+    let second = Ghnetd::builder(&ns).spawn();
     let (status, log) = second.wait_exit();
     assert!(!status.success(), "{status:?}\n{log}");
     let want = format!(
@@ -250,8 +238,7 @@ fn a_second_daemon_on_the_same_prefix_exits_naming_the_first() {
     assert!(log.contains("ipc.service_prefix"), "{log}");
 
     // Another prefix in the same namespace is another deployment: allowed.
-    let elsewhere = Daemon::start(&ns, &["--service-prefix", "site2/ghnet"]);
-    elsewhere.wait_for_log("ghnetd starting");
+    let elsewhere = Ghnetd::builder(&ns).prefix("site2/ghnet").start();
     elsewhere.assert_running();
 
     // The first one still serves.
@@ -262,19 +249,17 @@ fn a_second_daemon_on_the_same_prefix_exits_naming_the_first() {
 
     // A kill -9 leaves no stale lock: the next one starts and serves.
     first.kill9();
-    let third = Daemon::start(&ns, &[]);
-    third.wait_for_log("ghnetd starting");
+    let third = Ghnetd::builder(&ns).start();
     third.wait_until("an answer from the new daemon", || {
         gnss.send(sample(1)).unwrap();
         recv_answer(&headings, Duration::from_millis(100)).is_some_and(|h| h.seq == 1)
     });
-    let (status, log) = third.terminate();
-    assert!(status.success(), "{status:?}\n{log}");
+    third.stop();
 }
 
 #[test]
 fn the_subscriber_over_the_limit_gets_a_message_naming_the_key() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("overlimit");
     let ipc = ns.ipc();
     let max = SERVICE_SETTINGS.max_subscribers;
     let _full: Vec<_> = (0..max)
@@ -308,7 +293,7 @@ fn the_subscriber_over_the_limit_gets_a_message_naming_the_key() {
 
 #[test]
 fn a_source_over_the_limit_is_logged_and_the_others_are_served() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("fullsrc");
     let ipc = ns.ipc();
     // Every subscriber slot of `full`'s velocity service taken before ghnetd comes.
     let max = SERVICE_SETTINGS.max_subscribers;
@@ -316,7 +301,7 @@ fn a_source_over_the_limit_is_logged_and_the_others_are_served() {
         .map(|_| VelocitySubscriber::new(&ipc, "full").unwrap())
         .collect();
     let full = VelocityPublisher::new(&ipc, "full").unwrap();
-    let daemon = Daemon::start(&ns, &[]);
+    let daemon = Ghnetd::builder(&ns).start();
     daemon.wait_for_log("cannot serve discovered source");
     let log = daemon.log();
     let line = log
@@ -341,8 +326,7 @@ fn a_source_over_the_limit_is_logged_and_the_others_are_served() {
         1,
         "reported once"
     );
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{status:?}\n{log}");
+    daemon.stop();
 }
 
 /// Every file and directory below `dir` (inclusive).
@@ -362,10 +346,10 @@ fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
 
 #[test]
 fn everything_ghnetd_creates_is_owner_only() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("perm");
     // Static source, no client: ghnetd alone creates the services, its node and
     // the root directory.
-    let daemon = Daemon::start(&ns, &["--source", "perm", "--discovery", "false"]);
+    let daemon = (Ghnetd::builder(&ns).source("perm").discovery(false)).start();
     daemon.wait_for_log("source added");
 
     // The root directory is owner-only, so nothing below it is reachable by group or

@@ -1,16 +1,16 @@
 //! Invalid samples are answered `InvalidInput`, counted, and do not hurt the daemon.
 
-use ghnet_client::{flags, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
-use ghnet_tests::{now_ns, Daemon, Namespace, WATCHDOG};
+use ghnet_client::{flags, HeadingStatus, VelocitySample};
+use ghnet_testkit::{now_ns, OneSource, WATCHDOG};
 
 #[test]
 fn invalid_samples_are_answered_invalid_counted_and_the_daemon_goes_on() {
-    let ns = Namespace::new();
-    let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &["--source", "inv", "--discovery", "false"]);
-    let headings = HeadingSubscriber::new(&ipc, "inv").unwrap();
-    let gnss = VelocityPublisher::new(&ipc, "inv").unwrap();
-    daemon.wait_serving(&gnss);
+    let OneSource {
+        ns: _ns,
+        daemon,
+        headings,
+        gnss,
+    } = OneSource::start("inv", |b| b);
 
     let t0 = now_ns();
     let at =
@@ -68,16 +68,11 @@ fn invalid_samples_are_answered_invalid_counted_and_the_daemon_goes_on() {
     let n = cases.len() as u64;
     let n_invalid = cases.iter().filter(|c| !c.2).count() as u64;
 
-    // The daemon's counters (its periodic stats line).
-    let stats = daemon.wait_for_stats("inv", |s| s["received"] == n);
+    // The daemon's counters.
+    let stats = daemon.wait_for_counters("inv", |s| s["received"] == n);
     assert_eq!(stats["answered"], n, "{stats:?}");
     assert_eq!(stats["invalid"], n_invalid, "{stats:?}");
     assert_eq!(stats["backwards"], 1, "{stats:?}");
     assert_eq!((stats["gaps"], stats["duplicates"]), (0, 0), "{stats:?}");
-    assert!(daemon.is_running(), "ghnetd must survive invalid input");
-
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{status:?}\n{log}");
-    let last = ghnet_tests::last_stats_in(&log, "inv").unwrap();
-    assert_eq!((last["received"], last["invalid"]), (n, n_invalid), "{log}");
+    daemon.stop();
 }

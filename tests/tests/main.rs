@@ -1,7 +1,12 @@
-//! Cross-process tests of ghnet: the real `ghnetd` binary (found by
-//! `ghnet_tests::ghnetd_binary`; build it with `cargo build -p ghnetd` or run
-//! `cargo test --workspace`), real iceoryx2 shared memory, each test in its own
-//! namespace. One binary, one module per topic.
+//! Cross-process tests of ghnet: the real `ghnetd` binary, real iceoryx2 shared memory
+//! and real Zenoh, each test in its own namespace with its own Zenoh endpoint, on the
+//! test kit (`ghnet_testkit`). One binary, one module per topic.
+//!
+//! The kit finds `ghnetd` and its own bins next to this executable: `cargo test
+//! --workspace` builds them; for this crate alone, `cargo build -p ghnetd -p
+//! ghnet-testkit` first. Tests that need root and `ip`, or Python with the ghnet
+//! packages, are `#[ignore]`d with the reason; `.ci/run` runs them with
+//! `--include-ignored`.
 
 mod bad_input;
 mod config;
@@ -16,9 +21,3 @@ mod shutdown;
 mod soak;
 mod zenoh_acl;
 mod zenoh_output;
-
-/// Path of the helper publisher binary of this package.
-pub const TEST_PUBLISHER: &str = env!("CARGO_BIN_EXE_ghnet-test-publisher");
-
-/// Path of the helper subscriber binary of this package.
-pub const TEST_SUBSCRIBER: &str = env!("CARGO_BIN_EXE_ghnet-test-subscriber");

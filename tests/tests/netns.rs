@@ -1,18 +1,16 @@
 //! Two "hosts" on one machine: ghnetd in one network namespace, a Zenoh subscriber in
 //! another, joined by a veth pair. Every heading must cross.
 //!
-//! Needs root and `ip` (iproute2); skipped with a note otherwise. The namespaces and
-//! the veth pair are created by the test (unique names), addresses are a /30 of
-//! TEST-NET-1 (192.0.2.0/24) that exists only inside them, and everything is deleted
-//! on drop. iceoryx2 is untouched by network namespaces (same `/dev/shm`), so this
-//! test publishes velocity from its own process.
+//! Needs root and `ip` (iproute2): ignored unless asked for (`--include-ignored`, as
+//! `.ci/run` does). The namespaces and the veth pair are created by the test (unique
+//! names), addresses are a /30 of TEST-NET-1 (192.0.2.0/24) that exists only inside
+//! them, and everything is deleted on drop. iceoryx2 is untouched by network
+//! namespaces (same `/dev/shm`), so this test publishes velocity from its own process.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
-use std::sync::mpsc;
+use std::process::Command;
 
 use ghnet_client::{encode_zenoh, HeadingSubscriber, VelocityPublisher, VelocitySample};
-use ghnet_tests::{now_ns, unique_prefix, Daemon, Namespace, WATCHDOG};
+use ghnet_testkit::{now_ns, ChildSubscriber, Ghnetd, Listen, TestNamespace, WATCHDOG};
 
 const DAEMON_ADDR: &str = "192.0.2.1";
 const CONSUMER_ADDR: &str = "192.0.2.2";
@@ -71,100 +69,30 @@ impl Drop for Hosts {
     }
 }
 
-fn can_run() -> bool {
-    // SAFETY: geteuid has no preconditions.
-    if unsafe { libc::geteuid() } != 0 {
-        eprintln!("SKIPPED: network namespaces need root");
-        return false;
-    }
-    if Command::new("ip").arg("-V").output().is_err() {
-        eprintln!("SKIPPED: `ip` (iproute2) is not installed");
-        return false;
-    }
-    true
-}
-
 #[test]
+#[ignore = "needs root and ip"]
 fn every_heading_crosses_to_another_network_namespace() {
-    if !can_run() {
-        return;
-    }
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("netns");
     // Interface names are at most 15 bytes: "ghv" + 6 + 3 + "a".
     let tag = format!("{:x}{}", std::process::id() % 0xff_ffff, rand_suffix());
-    let hosts = match Hosts::create(&tag) {
-        Ok(h) => h,
-        Err(e) => {
-            eprintln!("SKIPPED: cannot create network namespaces: {e}");
-            return;
-        }
-    };
-    let prefix = unique_prefix("nn");
-    let ipc = ns.ipc().with_prefix(&prefix).unwrap();
-    let wrapper = ["ip", "netns", "exec", hosts.daemon.as_str()];
-    let listen = format!("tcp/{DAEMON_ADDR}:0");
-    let daemon = Daemon::start_wrapped(
-        &ns,
-        &wrapper,
-        &[
-            "--source",
-            "nn",
-            "--discovery",
-            "false",
-            "--service-prefix",
-            &prefix,
-            "--zenoh-listen",
-            &listen,
-        ],
-    );
-    let endpoint = daemon.zenoh_endpoint();
-    assert!(
-        endpoint.starts_with(&format!("tcp/{DAEMON_ADDR}:")),
-        "{endpoint}"
-    );
+    let hosts = Hosts::create(&tag).unwrap_or_else(|e| panic!("network namespaces: {e}"));
+    // The daemon's namespace is fresh: any port is free there.
+    let endpoint = format!("tcp/{DAEMON_ADDR}:7447");
+    // Spawned, not started: the kit's own session cannot reach the address.
+    let daemon = (Ghnetd::builder(&ns).source("nn").discovery(false))
+        .listen(Listen::Endpoint(endpoint.clone()))
+        .wrapper(&["ip", "netns", "exec", &hosts.daemon])
+        .spawn();
+    let ipc = daemon.ipc().clone();
 
-    // The consumer: this test binary again, running the ignored child test below in
-    // the other namespace.
-    let n = 200u64;
-    let mut child = Command::new("ip")
-        .args(["netns", "exec", &hosts.consumer])
-        .arg(std::env::current_exe().unwrap())
-        .args([
-            "--exact",
-            "netns::netns_child_subscriber",
-            "--ignored",
-            "--nocapture",
-        ])
-        .env("GHNET_NETNS_CONNECT", &endpoint)
-        .env("GHNET_NETNS_PREFIX", &prefix)
-        .env("GHNET_NETNS_COUNT", n.to_string())
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("spawn the consumer");
-    let (tx, rx) = mpsc::channel();
-    let stdout = child.stdout.take().unwrap();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            if tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
-    let next = |what: &str| -> String {
-        loop {
-            let line = rx
-                .recv_timeout(WATCHDOG)
-                .unwrap_or_else(|_| panic!("watchdog: no {what} from the consumer"));
-            if line.starts_with("READY") || line.starts_with("H ") {
-                return line;
-            }
-        }
-    };
-    assert_eq!(next("ready line"), "READY");
+    // The consumer, in the other namespace; ready once ghnetd knows its subscription.
+    let wrapper = ["ip", "netns", "exec", hosts.consumer.as_str()];
+    let consumer = ChildSubscriber::zenoh(&wrapper, &endpoint, ipc.prefix(), "nn");
 
     let ice = HeadingSubscriber::new(&ipc, "nn").unwrap();
     let gnss = VelocityPublisher::new(&ipc, "nn").unwrap();
     daemon.wait_serving(&gnss);
+    let n = 200u64;
     let mut sent = Vec::new();
     let t0 = now_ns();
     for i in 0..n {
@@ -178,15 +106,15 @@ fn every_heading_crosses_to_another_network_namespace() {
             .iter()
             .map(|b| format!("{b:02x}"))
             .collect();
-        sent.push(format!("H {} {hex}", h.seq));
+        sent.push((h.seq, hex));
     }
-    let mut received: Vec<String> = (0..n).map(|_| next("heading")).collect();
-    received.sort_by_key(|l| l.split(' ').nth(1).unwrap().parse::<u64>().unwrap());
+    let mut received: Vec<(u64, String)> = (0..n)
+        .map(|_| consumer.next().expect("a heading in the other namespace"))
+        .map(|h| (h.seq, h.hex))
+        .collect();
+    received.sort();
     assert_eq!(received, sent, "every heading crosses, byte for byte");
-    let status = child.wait().unwrap();
-    assert!(status.success());
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{log}");
+    daemon.stop();
 }
 
 fn rand_suffix() -> String {
@@ -195,29 +123,4 @@ fn rand_suffix() -> String {
         .build_hasher()
         .finish();
     format!("{:x}", r & 0xfff)
-}
-
-/// The consumer side of the test above; runs only when spawned by it.
-#[test]
-#[ignore = "spawned by every_heading_crosses_to_another_network_namespace"]
-fn netns_child_subscriber() {
-    let endpoint = std::env::var("GHNET_NETNS_CONNECT").expect("spawned by the parent test");
-    let prefix = std::env::var("GHNET_NETNS_PREFIX").unwrap();
-    let n: u64 = std::env::var("GHNET_NETNS_COUNT").unwrap().parse().unwrap();
-    let ipc = ghnet_client::IpcConfig::new(&prefix).unwrap();
-    let session = ghnet_tests::zenoh_session(&endpoint);
-    let sub = ghnet_client::ZenohHeadingSubscriber::new(&session, &ipc, "nn").unwrap();
-    ghnet_tests::zenoh_barrier(&session, &ipc);
-    println!("READY");
-    for _ in 0..n {
-        let h = sub
-            .recv_timeout(WATCHDOG)
-            .unwrap()
-            .expect("a heading within the watchdog");
-        let hex: String = encode_zenoh(&h)
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect();
-        println!("H {} {hex}", h.seq);
-    }
 }

@@ -3,8 +3,8 @@
 //! `eclipse-zenoh==1.10.2`) decodes its Zenoh headings with `struct`, and a Rust
 //! subscriber on iceoryx2 and one on Zenoh see the same values.
 //!
-//! Needs `python3` with both packages (`.ci/run` installs them); skipped with a note
-//! otherwise.
+//! Needs `python3` with both packages: ignored unless asked for (`--include-ignored`;
+//! `.ci/run` installs them and does).
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
@@ -13,41 +13,27 @@ use std::process::{Command, Stdio};
 use std::sync::mpsc;
 
 use ghnet_client::{encode_zenoh, HeadingEstimate, HeadingSubscriber, ZenohHeadingSubscriber};
-use ghnet_tests::{unique_prefix, zenoh_barrier, zenoh_session, Daemon, Namespace, WATCHDOG};
+use ghnet_testkit::{zenoh_barrier, Ghnetd, Listen, TestNamespace, WATCHDOG};
 
 fn python_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples/python")
 }
 
-fn python_ready() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import iceoryx2, zenoh"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        eprintln!(
-            "SKIPPED: needs python3 with `pip install iceoryx2==0.10.0 eclipse-zenoh==1.10.2` (.ci/run installs them)"
-        );
-    }
-    ok
-}
-
 #[test]
+#[ignore = "needs python3 with iceoryx2==0.10.0 and eclipse-zenoh==1.10.2"]
 fn python_publisher_gets_headings_and_python_subscriber_decodes_the_same_values() {
-    if !python_ready() {
-        return;
-    }
-    let ns = Namespace::new();
-    let prefix = unique_prefix("py");
-    let ipc = ns.ipc().with_prefix(&prefix).unwrap();
-    let daemon = Daemon::start(&ns, &["--service-prefix", &prefix]);
-    let endpoint = daemon.zenoh_endpoint();
+    let ns = TestNamespace::new("python");
+    // The Python subscriber as documented: tcp to the daemon, another prefix than
+    // the default one.
+    let daemon = (Ghnetd::builder(&ns).prefix("py/ghnet"))
+        .listen(Listen::Tcp)
+        .start();
+    let (ipc, endpoint) = (daemon.ipc().clone(), daemon.zenoh_endpoint());
+    let prefix = ipc.prefix();
 
     // Rust subscribers first (iceoryx2 keeps no history).
     let ice = HeadingSubscriber::new(&ipc, "pysrc").unwrap();
-    let session = zenoh_session(&endpoint);
+    let session = daemon.connect();
     let zen = ZenohHeadingSubscriber::new(&session, &ipc, "pysrc").unwrap();
     zenoh_barrier(&session, &ipc);
 
@@ -58,16 +44,16 @@ fn python_publisher_gets_headings_and_python_subscriber_decodes_the_same_values(
         .arg(python_dir().join("subscribe_heading.py"))
         .args([
             "--prefix",
-            &prefix,
+            prefix,
             "--source",
             "pysrc",
             "--connect",
-            &endpoint,
+            endpoint,
         ])
         .args(["--count", &count, "--json", "--timeout", "60"])
         .stdout(Stdio::piped())
         .spawn()
-        .expect("python3");
+        .expect("python3 (with `pip install iceoryx2==0.10.0 eclipse-zenoh==1.10.2`)");
     let (tx, rx) = mpsc::channel();
     let stdout = py_sub.stdout.take().unwrap();
     std::thread::spawn(move || {
@@ -86,7 +72,7 @@ fn python_publisher_gets_headings_and_python_subscriber_decodes_the_same_values(
     // the source and its heading publisher, and undelivered samples go with it.
     let mut publisher = Command::new("python3")
         .arg(python_dir().join("publish_velocity.py"))
-        .args(["--prefix", &prefix, "--source", "pysrc"])
+        .args(["--prefix", prefix, "--source", "pysrc"])
         .args(["--count", &count, "--rate", "100", "--first-seq", "1000"])
         .arg("--iceoryx2-global-prefix")
         .arg(ns.global_prefix())
@@ -166,6 +152,5 @@ fn python_publisher_gets_headings_and_python_subscriber_decodes_the_same_values(
     let status = py_sub.wait().expect("reap python subscriber");
     assert!(status.success());
     assert_eq!(python, n);
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{log}");
+    daemon.stop();
 }

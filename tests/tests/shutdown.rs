@@ -2,31 +2,25 @@
 
 use std::time::Duration;
 
-use ghnet_client::{HeadingSubscriber, VelocityPublisher, VelocitySample};
-use ghnet_tests::{last_stats_in, now_ns, Daemon, Namespace, WATCHDOG};
+use ghnet_client::{VelocityPublisher, VelocitySample};
+use ghnet_testkit::{now_ns, Ghnetd, OneSource, TestNamespace, WATCHDOG};
 
 #[test]
 fn sigterm_answers_what_was_received_and_exits_zero() {
-    let ns = Namespace::new();
-    let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &["--source", "term", "--discovery", "false"]);
-    let headings = HeadingSubscriber::new(&ipc, "term").unwrap();
-    let gnss = VelocityPublisher::new(&ipc, "term").unwrap();
-    daemon.wait_serving(&gnss);
+    let OneSource {
+        ns: _ns,
+        daemon,
+        headings,
+        gnss,
+    } = OneSource::start("term", |b| b);
 
     // One round trip first. It also connects our subscriber to the daemon's heading
     // publisher: iceoryx2 connects a subscriber on `receive`, and answers of a
     // publisher that is gone before a subscriber's first `receive` never reach it.
     gnss.send(VelocitySample::new(now_ns(), 0, 1.0, 2.0, 0.0))
         .unwrap();
-    assert_eq!(
-        headings
-            .recv_timeout(WATCHDOG)
-            .unwrap()
-            .expect("answer")
-            .seq,
-        0
-    );
+    let first = headings.recv_timeout(WATCHDOG).unwrap().expect("answer");
+    assert_eq!(first.seq, 0);
 
     // A burst (below the 128-sample buffers), then SIGTERM at once: whatever the
     // daemon has not answered yet is in its buffer and must be answered on the way out.
@@ -36,11 +30,8 @@ fn sigterm_answers_what_was_received_and_exits_zero() {
         gnss.publish(s).unwrap();
     }
     gnss.notify().unwrap();
-    let (status, log) = daemon.terminate();
-    assert_eq!(status.code(), Some(0), "{status:?}\n{log}");
+    let log = daemon.stop();
     assert!(log.contains("ghnetd stopped"), "{log}");
-    let stats = last_stats_in(&log, "term").expect("final stats line");
-    assert_eq!((stats["received"], stats["answered"]), (n, n), "{log}");
 
     // Every answer reached us exactly once, also after the daemon is gone.
     for seq in 1..n {
@@ -60,12 +51,10 @@ fn sigterm_answers_what_was_received_and_exits_zero() {
 
 #[test]
 fn sigterm_when_idle_with_discovered_sources_exits_zero() {
-    let ns = Namespace::new();
-    let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &[]);
-    let gnss = VelocityPublisher::new(&ipc, "idle").unwrap();
+    let ns = TestNamespace::new("idle");
+    let daemon = Ghnetd::builder(&ns).start();
+    let gnss = VelocityPublisher::new(&ns.ipc(), "idle").unwrap();
     daemon.wait_serving(&gnss);
-    let (status, log) = daemon.terminate();
-    assert_eq!(status.code(), Some(0), "{status:?}\n{log}");
+    daemon.stop();
     assert_eq!(gnss.subscriber_count(), 0, "ports released on exit");
 }

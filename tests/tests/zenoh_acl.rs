@@ -1,7 +1,8 @@
 //! Zenoh access control with the shipped example `daemon/zenoh-acl.example.json5`:
 //! a real ghnetd loads it with `--zenoh-config`, a real Zenoh session connects. The
 //! allowed source's headings arrive over Zenoh, the denied source's do not (while its
-//! iceoryx2 headings do), the stats queryable is hidden and the model one answers.
+//! iceoryx2 headings do), the stats queryable is hidden and the model one answers
+//! (the test kit's readiness check asks it).
 
 use std::path::Path;
 use std::time::Duration;
@@ -10,31 +11,23 @@ use ghnet_client::zenoh::Wait;
 use ghnet_client::{
     HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample, ZenohHeadingSubscriber,
 };
-use ghnet_tests::{now_ns, zenoh_barrier, zenoh_session, Daemon, Namespace, WATCHDOG};
+use ghnet_testkit::{now_ns, zenoh_barrier, Ghnetd, TestNamespace, WATCHDOG};
 
 #[test]
 fn acl_example_denies_one_source_and_the_stats_queryable_over_zenoh_only() {
     let acl = Path::new(env!("CARGO_MANIFEST_DIR")).join("../daemon/zenoh-acl.example.json5");
     let acl = acl.to_str().unwrap();
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("acl");
     // The example's keys use the default service prefix `ghnet`. Zenoh keys stay
-    // isolated anyway: the test's session talks to this daemon's port only.
+    // isolated anyway: the test's session talks to this daemon's endpoint only.
     let ipc = ns.ipc();
     assert_eq!(ipc.prefix(), "ghnet");
-    let daemon = Daemon::start(
-        &ns,
-        &[
-            "--source",
-            "public",
-            "--source",
-            "secret",
-            "--discovery",
-            "false",
-            "--zenoh-config",
-            acl,
-        ],
-    );
-    let session = zenoh_session(&daemon.zenoh_endpoint());
+    let daemon = (Ghnetd::builder(&ns).source("public").source("secret"))
+        .discovery(false)
+        .arg("--zenoh-config")
+        .arg(acl)
+        .start();
+    let session = daemon.connect();
     let zen_public = ZenohHeadingSubscriber::new(&session, &ipc, "public").unwrap();
     let zen_secret = ZenohHeadingSubscriber::new(&session, &ipc, "secret").unwrap();
     assert_eq!(
@@ -114,9 +107,7 @@ fn acl_example_denies_one_source_and_the_stats_queryable_over_zenoh_only() {
         .expect("a model reply");
     assert!(r.result().is_ok());
 
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{status:?}\n{log}");
-    // ghnetd counted the secret source like any other: it was served, just not shown.
-    let c = ghnet_tests::last_stats_in(&log, "secret").unwrap();
-    assert_eq!((c["received"], c["answered"]), (n, n), "{log}");
+    // ghnetd served the secret source like any other (every iceoryx2 answer above
+    // arrived), it just did not show it over Zenoh.
+    daemon.stop();
 }

@@ -4,60 +4,38 @@
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-use ghnet_client::zenoh::query::ConsolidationMode;
 use ghnet_client::zenoh::Wait;
-use ghnet_client::{
-    HeadingEstimate, HeadingSubscriber, VelocityPublisher, VelocitySample, ZenohHeadingSubscriber,
+use ghnet_client::{HeadingEstimate, VelocitySample, ZenohHeadingSubscriber};
+use ghnet_testkit::{
+    now_ns, run_ghnetd, test_model, Ghnetd, Listen, OneSource, TestNamespace, WATCHDOG,
 };
-use ghnet_tests::{now_ns, test_model, unique_prefix, zenoh_session, Daemon, Namespace, WATCHDOG};
 
 /// ghnetd serving one static source, seen through a velocity publisher and a heading
 /// subscriber on each output.
-struct OneSource {
-    // Field order = drop order: the ports before the namespace they live in.
-    gnss: VelocityPublisher,
-    ice: HeadingSubscriber,
+struct ZenohSource {
+    // Field order = drop order: the subscriber and session before the daemon.
     zen: ZenohHeadingSubscriber,
     session: ghnet_client::zenoh::Session,
-    daemon: Daemon,
-    ipc: ghnet_client::IpcConfig,
-    prefix: String,
-    _ns: Namespace,
+    one: OneSource,
 }
 
-impl OneSource {
-    /// Starts ghnetd for `source` under a fresh prefix and warms it up: sends
-    /// samples until one comes back over Zenoh too (the subscriber's declaration has
-    /// reached the daemon), then drains both subscribers.
+impl ZenohSource {
+    /// Starts ghnetd for `source` and warms it up: sends samples until one comes back
+    /// over Zenoh too (the subscriber's declaration has reached the daemon), then
+    /// drains both subscribers.
     fn start(source: &str) -> Self {
-        let ns = Namespace::new();
-        let prefix = unique_prefix("zt");
-        let ipc = ns.ipc().with_prefix(&prefix).unwrap();
-        let daemon = Daemon::start(
-            &ns,
-            &[
-                "--source",
-                source,
-                "--discovery",
-                "false",
-                "--service-prefix",
-                &prefix,
-            ],
-        );
-        let session = zenoh_session(&daemon.zenoh_endpoint());
-        let zen = ZenohHeadingSubscriber::new(&session, &ipc, source).unwrap();
-        let ice = HeadingSubscriber::new(&ipc, source).unwrap();
-        let gnss = VelocityPublisher::new(&ipc, source).unwrap();
-        daemon.wait_serving(&gnss);
+        let one = OneSource::start(source, |b| b);
+        let session = one.daemon.connect();
+        let zen = ZenohHeadingSubscriber::new(&session, one.daemon.ipc(), source).unwrap();
         let mut seq = 0;
         loop {
-            daemon.assert_running();
+            one.daemon.assert_running();
             assert!(seq < 2_000, "no heading over Zenoh after {seq} samples");
-            gnss.send(VelocitySample::new(now_ns(), seq, 1.0, 1.0, 0.0))
-                .unwrap();
-            ice.recv_timeout(WATCHDOG)
-                .unwrap()
-                .expect("iceoryx2 answer");
+            (one.gnss
+                .send(VelocitySample::new(now_ns(), seq, 1.0, 1.0, 0.0)))
+            .unwrap();
+            let answer = one.headings.recv_timeout(WATCHDOG).unwrap();
+            answer.expect("iceoryx2 answer");
             seq += 1;
             if zen
                 .recv_timeout(Duration::from_millis(20))
@@ -72,16 +50,7 @@ impl OneSource {
             .unwrap()
             .is_some()
         {}
-        Self {
-            gnss,
-            ice,
-            zen,
-            session,
-            daemon,
-            ipc,
-            prefix,
-            _ns: ns,
-        }
+        Self { zen, session, one }
     }
 }
 
@@ -89,7 +58,7 @@ impl OneSource {
 /// one, panics with the daemon's log.
 fn next_zenoh(
     zen: &ZenohHeadingSubscriber,
-    daemon: &Daemon,
+    daemon: &Ghnetd,
     got: usize,
     of: usize,
 ) -> HeadingEstimate {
@@ -106,18 +75,15 @@ fn next_zenoh(
 
 #[test]
 fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
-    // Bindings drop in reverse: the namespace last.
+    let ZenohSource { zen, session, one } = ZenohSource::start("z0");
     let OneSource {
-        _ns,
+        ns: _ns,
         daemon,
-        session,
-        zen,
-        ice,
+        headings: ice,
         gnss,
-        ipc,
-        prefix,
-    } = OneSource::start("z0");
-    assert_eq!(zen.key(), format!("{prefix}/z0/heading"));
+    } = one;
+    let ipc = daemon.ipc().clone();
+    assert_eq!(zen.key(), "ghnet/z0/heading");
 
     // Valid, stationary, invalid (NaN) and fast inputs; large sequence numbers.
     let n = 400u64;
@@ -157,27 +123,16 @@ fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
         .is_none());
 
     // Stats: the loop refreshes the snapshot per wake-up; the last one is in.
-    let stats_key = ipc.zenoh_stats_key();
-    let mut stats = serde_json::Value::Null;
-    daemon.wait_until("stats with every sample", || {
-        let replies = session
-            .get(stats_key.as_str())
-            .consolidation(ConsolidationMode::None)
-            .wait()
-            .unwrap();
-        let reply = replies.recv_timeout(WATCHDOG).unwrap().expect("a reply");
-        let bytes = reply.result().expect("ok reply").payload().to_bytes();
-        stats = serde_json::from_slice(&bytes).expect("JSON");
-        stats["sources"]["z0"]["last_seq"] == first + n - 1
-    });
-    let z0 = &stats["sources"]["z0"];
-    let received = z0["received"].as_u64().unwrap();
-    assert_eq!(z0["answered"].as_u64(), Some(received), "{stats}");
-    assert!(received >= n, "{stats}");
-    assert!(z0["invalid"].as_u64().unwrap() >= n / 4, "{stats}");
-    assert!(z0["processing"]["p50_ns"].as_u64().unwrap() > 0, "{stats}");
+    let z0 = daemon.wait_for_counters("z0", |c| c.get("last_seq") == Some(&(first + n - 1)));
+    let received = z0["received"];
+    assert_eq!(z0["answered"], received, "{z0:?}");
+    assert!(received >= n, "{z0:?}");
+    assert!(z0["invalid"] >= n / 4, "{z0:?}");
+    let stats = daemon.stats();
+    let processing = &stats["sources"]["z0"]["processing"];
+    assert!(processing["p50_ns"].as_u64().unwrap() > 0, "{stats}");
     assert!(
-        z0["processing"]["p99_ns"].as_u64() >= z0["processing"]["p50_ns"].as_u64(),
+        processing["p99_ns"].as_u64() >= processing["p50_ns"].as_u64(),
         "{stats}"
     );
     assert_eq!(stats["daemon"]["pid"].as_u64(), Some(daemon.pid() as u64));
@@ -198,7 +153,7 @@ fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
     let zid = stats["daemon"]["zid"].as_str().unwrap().to_owned();
     let tokens = session
         .liveliness()
-        .get(format!("{prefix}/@ghnetd/*"))
+        .get(ipc.zenoh_presence_key("*"))
         .wait()
         .unwrap();
     let token = tokens.recv_timeout(WATCHDOG).unwrap().expect("a token");
@@ -206,9 +161,7 @@ fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
         token.result().expect("ok").key_expr().as_str(),
         ipc.zenoh_presence_key(&zid)
     );
-
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{log}");
+    daemon.stop();
 }
 
 /// A source that delivers in bursts (publish many, notify once) is drained in one
@@ -217,15 +170,17 @@ fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
 /// iceoryx2 (two publishers share the key; they must not reorder).
 #[test]
 fn bursts_arrive_on_zenoh_complete_and_in_order() {
-    let OneSource {
-        _ns,
-        daemon,
-        session: _session,
+    let ZenohSource {
         zen,
-        ice,
+        session: _session,
+        one,
+    } = ZenohSource::start("b0");
+    let OneSource {
+        ns: _ns,
+        daemon,
+        headings: ice,
         gnss,
-        ..
-    } = OneSource::start("b0");
+    } = one;
 
     // Bursts of 1 to 120 samples (the buffers hold 128), valid and invalid mixed.
     let first = 1u64 << 32;
@@ -273,8 +228,7 @@ fn bursts_arrive_on_zenoh_complete_and_in_order() {
             .is_none(),
         "no extra heading"
     );
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{log}");
+    daemon.stop();
 }
 
 /// Socket inodes of `pid`'s open file descriptors.
@@ -309,13 +263,9 @@ fn rows(pid: u32, table: &str, inodes: &[String]) -> Vec<(String, String)> {
 /// scouting. `ss -tulpn | grep ghnetd` shows the same by hand.
 #[test]
 fn default_zenoh_listens_on_loopback_only_and_opens_no_udp_socket() {
-    let ns = Namespace::new();
-    let prefix = unique_prefix("zl");
-    let daemon = Daemon::start(&ns, &["--service-prefix", &prefix]);
-    let endpoint = daemon.zenoh_endpoint();
-    assert!(endpoint.starts_with("tcp/127.0.0.1:"), "{endpoint}");
-    // Connect once, so established sockets exist too.
-    let _session = zenoh_session(&endpoint);
+    let ns = TestNamespace::new("loopback");
+    let daemon = Ghnetd::builder(&ns).listen(Listen::Tcp).start();
+    // The kit's session is connected, so established sockets exist too.
     let pid = daemon.pid();
     let inodes = socket_inodes(pid);
     let listening: Vec<_> = rows(pid, "tcp", &inodes)
@@ -333,22 +283,20 @@ fn default_zenoh_listens_on_loopback_only_and_opens_no_udp_socket() {
         .chain(rows(pid, "udp6", &inodes))
         .collect();
     assert!(udp.is_empty(), "UDP sockets (scouting?): {udp:?}");
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{log}");
+    daemon.stop();
 }
 
 /// A Zenoh port already taken: ghnetd exits non-zero and says which key to change.
 #[test]
 fn busy_zenoh_port_is_a_clear_start_up_error() {
-    let ns = Namespace::new();
+    let ns = TestNamespace::new("busyport");
     let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let endpoint = format!("tcp/{}", taken.local_addr().unwrap());
-    let mut args = ns.daemon_args();
-    args.extend(["--zenoh-listen".into(), endpoint.clone().into()]);
+    let mut args = vec!["--zenoh-listen".into(), endpoint.clone().into()];
     if let Some(name) = test_model().flag {
         args.extend(["--model".into(), name.into()]);
     }
-    let out = ghnet_tests::run_ghnetd(&args);
+    let out = run_ghnetd(&ns, &args);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
     let last = stderr.lines().last().unwrap_or_default();
@@ -359,18 +307,17 @@ fn busy_zenoh_port_is_a_clear_start_up_error() {
 /// `--zenoh false`: no Zenoh session at all, iceoryx2 unaffected.
 #[test]
 fn zenoh_can_be_disabled() {
-    let ns = Namespace::new();
-    let ipc = ns.ipc();
-    let daemon = Daemon::start(&ns, &["--source", "off", "--zenoh", "false"]);
-    let headings = HeadingSubscriber::new(&ipc, "off").unwrap();
-    let gnss = VelocityPublisher::new(&ipc, "off").unwrap();
-    daemon.wait_serving(&gnss);
+    let OneSource {
+        ns: _ns,
+        daemon,
+        headings,
+        gnss,
+    } = OneSource::start("off", |b| b.listen(Listen::Off));
     gnss.send(VelocitySample::new(1, 1, 1.0, 0.0, 0.0)).unwrap();
     assert!(headings.recv_timeout(WATCHDOG).unwrap().is_some());
     let pid = daemon.pid();
     let inodes = socket_inodes(pid);
     assert!(rows(pid, "tcp", &inodes).is_empty() && rows(pid, "tcp6", &inodes).is_empty());
-    let (status, log) = daemon.terminate();
-    assert!(status.success(), "{log}");
+    let log = daemon.stop();
     assert!(log.contains("zenoh output disabled"), "{log}");
 }

@@ -1,64 +1,30 @@
 //! `publisher`: one simulated vehicle sending `VelocitySample`s to ghnetd.
 //!
-//! Teaches: `VelocityPublisher` (loan → write → send → notify, straight into shared
-//! memory), real timestamps, increasing sequence numbers, pacing with `node.wait`
-//! (which also ends the loop on Ctrl-C), and waiting for the daemon before the first
-//! sample (ghnet services keep no history).
-//!
 //! Run (with `ghnetd` and `subscriber` in other terminals, see examples/README.md):
 //!
 //! ```text
 //! cargo run -p ghnet-examples --bin publisher -- --source gnss0 --rate 10 --duration 60
 //! ```
+//!
+//! `VelocityPublisher::send` is loan → write → send → notify, straight into shared
+//! memory. Timestamps are real, sequence numbers increase, `node.wait` paces the loop
+//! (and ends it on Ctrl-C), and the first sample waits for the daemon: ghnet services
+//! keep no history, so a sample sent before ghnetd subscribed is never answered.
 
-use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
 use ghnet_client::VelocityPublisher;
-use ghnet_examples::{
-    now_ns, pacing_node, wait_for_subscriber, CommonArgs, Interrupted, Pacer, Vehicle,
-};
+use ghnet_examples::{now_ns, pacing_node, wait_for_subscriber, CommonArgs, Interrupted};
+use ghnet_examples::{Pacer, Vehicle};
 
-/// Sends a simulated vehicle's GNSS velocities on `<prefix>/<source>/velocity`.
-#[derive(Parser)]
-struct Args {
-    #[command(flatten)]
-    common: CommonArgs,
-    /// Source name (the `<source>` level of the service name).
-    #[arg(long, default_value = "gnss0")]
-    source: String,
-    /// Samples per second.
-    #[arg(long, default_value_t = 10.0)]
-    rate: f64,
-    /// Seconds to publish; 0 = until Ctrl-C.
-    #[arg(long, default_value_t = 60.0)]
-    duration: f64,
-    /// Seconds to wait for a subscriber (ghnetd) before sending anyway.
-    #[arg(long, default_value_t = 5.0)]
-    wait: f64,
-    /// Simulation seed: picks the trajectory and the receiver.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-}
-
-fn main() -> ExitCode {
-    match run(Args::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-fn run(args: Args) -> anyhow::Result<()> {
+fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
     let ipc = args.common.ipc()?;
     let node = pacing_node(&ipc, "ghnet-example-publisher")?;
     let gnss = VelocityPublisher::with_node(&node, &ipc, &args.source)?;
     let mut vehicle = Vehicle::new(args.seed, args.rate, args.duration.max(60.0));
 
-    // No history: a sample sent before ghnetd subscribed would never be answered.
     let patience = Duration::from_secs_f64(args.wait);
     if let Err(e) = wait_for_subscriber(&node, &[&gnss], patience, || false) {
         if e.is::<Interrupted>() {
@@ -80,4 +46,26 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     println!("sent {seq} samples (seq 0..{seq})");
     Ok(())
+}
+
+/// Sends a simulated vehicle's GNSS velocities on `<prefix>/<source>/velocity`.
+#[derive(Parser)]
+struct Args {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Source name (the `<source>` level of the service names).
+    #[arg(long, default_value = "gnss0")]
+    source: String,
+    /// Samples per second.
+    #[arg(long, default_value_t = 10.0)]
+    rate: f64,
+    /// Seconds to publish; 0 = until Ctrl-C.
+    #[arg(long, default_value_t = 60.0)]
+    duration: f64,
+    /// Seconds to wait for a subscriber (ghnetd) before sending anyway.
+    #[arg(long, default_value_t = 5.0)]
+    wait: f64,
+    /// Simulation seed: picks the trajectory and the receiver.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
 }

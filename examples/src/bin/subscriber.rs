@@ -1,62 +1,36 @@
 //! `subscriber`: prints the headings ghnetd publishes for one source as a live table.
 //!
-//! Teaches: `HeadingSubscriber::recv_timeout` sleeps on the paired event service
-//! (no busy polling) and wakes at least once a second, so the loop can check
-//! `termination_requested()` (iceoryx2 captures Ctrl-C); every heading echoes its
-//! sample's `seq` and `timestamp_ns` (so latency = receipt − timestamp), and the
-//! `status` decides whether the heading may be used.
-//!
 //! Run (with `ghnetd` and `publisher` in other terminals, see examples/README.md):
 //!
 //! ```text
 //! cargo run -p ghnet-examples --bin subscriber -- --source gnss0
 //! ```
+//!
+//! `HeadingSubscriber::recv_timeout` sleeps on the paired event service (no busy
+//! polling) and wakes at least once a second, so the loop can check
+//! `termination_requested()` (iceoryx2 captures Ctrl-C). Every heading echoes its
+//! sample's `seq` and `timestamp_ns` (latency = receipt − timestamp), and its `status`
+//! says whether the heading may be used.
 
-use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Parser;
 use ghnet_client::{termination_requested, HeadingSubscriber, RecvError};
 use ghnet_examples::{latency_since, table, CommonArgs};
 
-/// Prints `<prefix>/<source>/heading` as a table until Ctrl-C (or `--count`).
-#[derive(Parser)]
-struct Args {
-    #[command(flatten)]
-    common: CommonArgs,
-    /// Source name whose headings to print.
-    #[arg(long, default_value = "gnss0")]
-    source: String,
-    /// Stop after this many headings; 0 = until Ctrl-C.
-    #[arg(long, default_value_t = 0)]
-    count: u64,
-}
-
-fn main() -> ExitCode {
-    match run(Args::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-fn run(args: Args) -> anyhow::Result<()> {
+fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
     let ipc = args.common.ipc()?;
     let headings = HeadingSubscriber::new(&ipc, &args.source)?;
     println!("listening on {}", headings.service_name());
-    println!("{}", table::HEADER);
+    println!("{}", table::header());
 
-    let mut received = 0u64;
-    let mut quiet = false; // report a silence once, not every second
-                           // iceoryx2 captures Ctrl-C once its ports exist; ask for it between waits.
+    let (mut received, mut quiet) = (0u64, false); // report a silence once
     while (args.count == 0 || received < args.count) && !termination_requested() {
         match headings.recv_timeout(Duration::from_secs(1)) {
             Ok(Some(h)) => {
                 println!("{}", table::row(&h, latency_since(h.timestamp_ns)));
-                received += 1;
-                quiet = false;
+                (received, quiet) = (received + 1, false);
             }
             Ok(None) if !quiet => {
                 eprintln!("(no heading for 1 s: is ghnetd running and a publisher sending?)");
@@ -69,4 +43,17 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     println!("received {received} headings");
     Ok(())
+}
+
+/// Prints `<prefix>/<source>/heading` as a table until Ctrl-C (or `--count`).
+#[derive(Parser)]
+struct Args {
+    #[command(flatten)]
+    common: CommonArgs,
+    /// Source name (the `<source>` level of the service names).
+    #[arg(long, default_value = "gnss0")]
+    source: String,
+    /// Stop after this many headings; 0 = until Ctrl-C.
+    #[arg(long, default_value_t = 0)]
+    count: u64,
 }

@@ -10,11 +10,13 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::Duration;
 
-use ghnet_client::testing::TestNamespace;
 use ghnet_client::zenoh::{Session, Wait};
 use ghnet_client::{HeadingSubscriber, VelocityPublisher};
 
+use ghnet_testkit::TestNamespace;
+
 use crate::latency::moving_sample;
+use crate::{row, Args, Row};
 
 struct Counting;
 
@@ -47,7 +49,7 @@ static GLOBAL: Counting = Counting;
 
 /// Allocations per answered sample on the daemon thread, one sample in flight,
 /// with the Zenoh output on (and a subscriber on `session`) or off.
-pub fn per_sample(
+fn per_sample(
     model: &str,
     zenoh: Option<(&Session, String)>,
     warmup: u64,
@@ -62,7 +64,7 @@ pub fn per_sample(
     config.model.name = model.to_owned();
     config.stats.interval_s = 0;
     config.zenoh.enabled = zenoh.is_some();
-    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", crate::target::free_port()?)];
+    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", ghnet_testkit::free_tcp_port())];
     if let Some((_, endpoint)) = &zenoh {
         config.zenoh.connect = vec![endpoint.clone()];
     }
@@ -118,4 +120,24 @@ pub fn per_sample(
     let per_sample = result?;
     stats?;
     Ok(per_sample)
+}
+
+/// Phase 6: allocations per sample on the daemon thread (in-process `ghnetd::run`).
+pub fn rows(args: &Args, session: &Session, endpoint: &str) -> anyhow::Result<Vec<Row>> {
+    let n_alloc = (args.samples / 5).max(1_000);
+    let alloc_ice = per_sample(&args.model, None, 1_000, n_alloc)?;
+    let alloc_zenoh = per_sample(
+        &args.model,
+        Some((session, endpoint.to_owned())),
+        1_000,
+        n_alloc,
+    )?;
+    eprintln!("allocations per sample: iceoryx2 only {alloc_ice:.2}, with zenoh {alloc_zenoh:.2}");
+    Ok(vec![row(
+        "allocations per sample on the daemon thread: iceoryx2 only / with Zenoh",
+        "–".into(),
+        format!("{alloc_ice:.2} / {alloc_zenoh:.2}"),
+        "– (see note)".into(),
+        None,
+    )])
 }

@@ -22,7 +22,7 @@ fn main() {
     let period = Duration::from_secs_f64(1.0 / rate.parse::<f64>().expect("RATE_HZ"));
     let t0 = Instant::now();
     for (k, seq) in (first_seq..).enumerate() {
-        let mut s = VelocitySample::new(ghnet_tests::now_ns(), seq, 3.0, 4.0, 0.0);
+        let mut s = VelocitySample::new(ghnet_testkit::now_ns(), seq, 3.0, 4.0, 0.0);
         s.speed_accuracy = 0.1;
         gnss.send(s).expect("send");
         let next = t0 + period.mul_f64((k + 1) as f64);

@@ -9,9 +9,11 @@ use ghnet_client::zenoh::Session;
 use ghnet_client::{
     HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample, ZenohHeadingSubscriber,
 };
-use ghnet_examples::Percentiles;
+use ghnet_tools::Percentiles;
 
-use crate::target::Target;
+use crate::inference::Inference;
+use crate::target::{Env, Kind, Spec, Target};
+use crate::{row, us, Args, Row};
 
 /// Which output the answer is read from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -31,7 +33,7 @@ pub struct LatencyRun {
 /// A moving sample, so the model runs in full; the speed varies a little per `seq`.
 pub fn moving_sample(seq: u64) -> VelocitySample {
     let vn = 3.0 + (seq % 97) as f32 * 0.01;
-    VelocitySample::new(ghnet_examples::now_ns(), seq, vn, 4.0, 0.0)
+    VelocitySample::new(ghnet_testkit::now_ns(), seq, vn, 4.0, 0.0)
 }
 
 /// Skips answers that are not the one awaited (a `Stale` status, or a late answer
@@ -42,7 +44,7 @@ fn is_answer_to(seq: u64, h: &ghnet_client::HeadingEstimate) -> bool {
 
 /// `warmup` then `n` measured round trips through `target` for `source`.
 pub fn measure(
-    target: &mut Target,
+    target: &Target,
     session: &Session,
     output: Output,
     source: &str,
@@ -50,7 +52,7 @@ pub fn measure(
     warmup: u64,
     n: u64,
 ) -> anyhow::Result<LatencyRun> {
-    let ipc = target.ipc.clone();
+    let ipc = target.ipc().clone();
     let gnss = VelocityPublisher::new(&ipc, source)?;
     let (times, lost) = match output {
         Output::Iceoryx2 => {
@@ -108,7 +110,7 @@ pub fn measure(
 /// `answer(seq)` waits for its answer (`false`: none within [`ANSWER_TIMEOUT`]).
 /// Returns the measured round trips in ns and how many were lost.
 fn round_trips(
-    target: &mut Target,
+    target: &Target,
     gnss: &VelocityPublisher,
     first: u64,
     warmup: u64,
@@ -136,4 +138,102 @@ fn round_trips(
         }
     }
     Ok((times, lost))
+}
+
+/// Phase 2: latency, four passes (raw echo and ghnetd, each with the iceoryx2 and
+/// the Zenoh output), one sample in flight.
+pub fn rows(
+    args: &Args,
+    env: &Env,
+    session: &Session,
+    endpoint: &str,
+    inference: &Inference,
+) -> anyhow::Result<Vec<Row>> {
+    let runs = measure_all(args, env, session, endpoint)?;
+    let of = |k: Kind, o: Output| {
+        let found = runs.iter().find(|((kk, oo), _)| *kk == k && *oo == o);
+        &found.expect("measured").1
+    };
+    let mut rows = Vec::new();
+    for (output, name) in [(Output::Iceoryx2, "iceoryx2"), (Output::Zenoh, "Zenoh")] {
+        let (raw, d) = (of(Kind::Echo, output), of(Kind::Ghnetd, output));
+        rows.extend(output_rows(args, name, inference, raw, d));
+    }
+    Ok(rows)
+}
+
+/// The four passes, each against a fresh target.
+fn measure_all(
+    args: &Args,
+    env: &Env,
+    session: &Session,
+    endpoint: &str,
+) -> anyhow::Result<Vec<((Kind, Output), LatencyRun)>> {
+    let mut runs = Vec::new();
+    let mut seq = 0;
+    for kind in [Kind::Echo, Kind::Ghnetd] {
+        let spec = Spec {
+            kind,
+            sources: vec!["lat0".into()],
+            discovery: false,
+            zenoh_connect: Some(endpoint.to_owned()),
+        };
+        let t = Target::spawn(env, &spec)?;
+        for output in [Output::Iceoryx2, Output::Zenoh] {
+            let (warmup, n) = (args.warmup_samples, args.samples);
+            let r = measure(&t, session, output, "lat0", seq, warmup, n)?;
+            seq += warmup + n + 10_000;
+            let label = kind.label();
+            eprintln!(
+                "latency {label} {output:?}: {} lost {}",
+                r.percentiles, r.lost
+            );
+            runs.push(((kind, output), r));
+        }
+        t.stop()?;
+    }
+    Ok(runs)
+}
+
+/// The rows of one output: p50 and p99 against their targets, p99.9 / max, losses.
+fn output_rows(
+    args: &Args,
+    name: &str,
+    inference: &Inference,
+    raw_run: &LatencyRun,
+    run: &LatencyRun,
+) -> Vec<Row> {
+    let (raw, d) = (&raw_run.percentiles, &run.percentiles);
+    let p50_limit = raw.p50 + inference.p50 + Duration::from_micros(10);
+    let p99_limit = raw.p99 + Duration::from_micros(25);
+    vec![
+        row(
+            &format!("latency p50, publisher → {{echo, ghnetd}} → {name} subscriber"),
+            us(raw.p50),
+            us(d.p50),
+            format!("≤ raw + model + 10 µs = {}", us(p50_limit)),
+            Some(d.p50 <= p50_limit),
+        ),
+        row(
+            &format!("latency p99 ({name})"),
+            us(raw.p99),
+            us(d.p99),
+            format!("≤ raw + 25 µs = {}", us(p99_limit)),
+            Some(d.p99 <= p99_limit),
+        ),
+        row(
+            &format!("latency p99.9 / max ({name})"),
+            format!("{} / {}", us(raw.p999), us(raw.max)),
+            format!("{} / {}", us(d.p999), us(d.max)),
+            "–".into(),
+            None,
+        ),
+        row(
+            &format!("latency samples lost ({name}, of {} each)", args.samples),
+            raw_run.lost.to_string(),
+            run.lost.to_string(),
+            "0".into(),
+            Some(run.lost == 0),
+        ),
+    ]
 }

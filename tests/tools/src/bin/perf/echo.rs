@@ -1,4 +1,4 @@
-//! `perf --role echo`: the raw transport baseline. It has ghnetd's shape without its
+//! `perf echo`: the raw transport baseline. It has ghnetd's shape without its
 //! work: one iceoryx2 node, one `WaitSet` woken by each source's velocity listener,
 //! drain every buffered sample, answer each with a `HeadingEstimate` that only echoes
 //! `seq` and `timestamp_ns`, publish it on iceoryx2 and on Zenoh (same QoS as
@@ -17,14 +17,21 @@ use ghnet_client::{
     encode_zenoh, HeadingEstimate, HeadingPublisher, HeadingStatus, IpcConfig, VelocitySubscriber,
 };
 
-/// Where the echo lives; filled from the hidden `--role echo` flags.
+/// Where the echo lives: ghnetd's flags, so the test kit starts it like a ghnetd.
+#[derive(clap::Args)]
 pub struct EchoArgs {
-    pub global_prefix: String,
-    pub root: PathBuf,
-    pub service_prefix: String,
-    pub sources: Vec<String>,
-    pub zenoh_listen: Option<String>,
-    pub zenoh_connect: Option<String>,
+    #[arg(long = "iceoryx2-global-prefix")]
+    global_prefix: String,
+    #[arg(long = "iceoryx2-root-path")]
+    root: PathBuf,
+    #[arg(long, default_value = ghnet_client::DEFAULT_PREFIX)]
+    service_prefix: String,
+    #[arg(long = "source")]
+    sources: Vec<String>,
+    #[arg(long)]
+    zenoh_listen: Option<String>,
+    #[arg(long)]
+    zenoh_connect: Option<String>,
 }
 
 struct Ports {

@@ -8,17 +8,21 @@ use ghnet_client::zenoh::sample::SampleKind;
 use ghnet_client::zenoh::{Session, Wait};
 use ghnet_client::VelocityPublisher;
 
+use anyhow::Context;
+use ghnet_tools::Percentiles;
+
 use crate::target::{cpu_time, Env, Kind, Spec, Target};
+use crate::{ms, row, Args, Row};
 
 /// CPU share of one core each target used over `window` while `publishers` (one per
 /// source, connected but silent) keep its sources alive.
-pub fn idle_cpu(
-    targets: &mut [&mut Target],
+fn idle_cpu(
+    targets: &[&Target],
     publishers: &[Vec<VelocityPublisher>],
     settle: Duration,
     window: Duration,
 ) -> anyhow::Result<Vec<f64>> {
-    for (t, pubs) in targets.iter_mut().zip(publishers) {
+    for (t, pubs) in targets.iter().zip(publishers) {
         t.wait_until("sources served", Duration::from_secs(30), || {
             pubs.iter().all(|p| p.subscriber_count() > 0)
         })?;
@@ -32,7 +36,7 @@ pub fn idle_cpu(
     std::thread::sleep(window);
     let elapsed = t0.elapsed().as_secs_f64();
     let mut shares = Vec::new();
-    for (t, b) in targets.iter_mut().zip(before) {
+    for (t, b) in targets.iter().zip(before) {
         t.check_running()?;
         shares.push((cpu_time(t.pid())? - b).as_secs_f64() / elapsed);
     }
@@ -43,7 +47,7 @@ pub fn idle_cpu(
 /// `<prefix>/@ghnetd/<zid>` has reached `session` (the daemon connects to it) and
 /// its subscriber on a static source exists (iceoryx2 services opened). Polled every
 /// 200 µs, so the figure is good to about that.
-pub fn start_to_ready(
+fn start_to_ready(
     env: &Env,
     session: &Session,
     session_endpoint: &str,
@@ -61,7 +65,7 @@ pub fn start_to_ready(
         let seen = token_at.clone();
         // Both watchers exist before the spawn, so the clock starts with the spawn.
         let mut t0 = Instant::now();
-        let (mut target, (gnss, _tokens)) = Target::spawn_with(env, &spec, |ipc| {
+        let (target, (gnss, _tokens)) = Target::spawn_with(env, &spec, |ipc| {
             let gnss = VelocityPublisher::new(ipc, "ready0")?;
             let tokens = session
                 .liveliness()
@@ -94,4 +98,78 @@ pub fn start_to_ready(
         target.stop()?;
     }
     Ok(ready)
+}
+
+/// Phases 4 and 5: idle CPU (both targets at once, each with silent connected
+/// sources; ghnetd as deployed, with discovery finding them) and start-to-ready.
+pub fn rows(args: &Args, env: &Env, session: &Session, endpoint: &str) -> anyhow::Result<Vec<Row>> {
+    let idle_names: Vec<String> = (0..args.idle_sources).map(|i| format!("idle{i}")).collect();
+    let echo_t = Target::spawn(
+        env,
+        &Spec {
+            kind: Kind::Echo,
+            sources: idle_names.clone(),
+            discovery: false,
+            zenoh_connect: None,
+        },
+    )?;
+    let daemon_t = Target::spawn(
+        env,
+        &Spec {
+            kind: Kind::Ghnetd,
+            sources: Vec::new(),
+            discovery: true,
+            zenoh_connect: None,
+        },
+    )?;
+    let publishers = [&echo_t, &daemon_t]
+        .iter()
+        .map(|t| {
+            idle_names
+                .iter()
+                .map(|n| VelocityPublisher::new(t.ipc(), n))
+                .collect::<Result<Vec<_>, _>>()
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let idle = idle_cpu(
+        &[&echo_t, &daemon_t],
+        &publishers,
+        Duration::from_secs(1),
+        Duration::from_secs_f64(args.idle_seconds),
+    )?;
+    drop(publishers);
+    echo_t.stop()?;
+    daemon_t.stop()?;
+    eprintln!(
+        "idle CPU: raw {:.3}%  ghnetd {:.3}%",
+        idle[0] * 100.0,
+        idle[1] * 100.0
+    );
+
+    let ready = start_to_ready(env, session, endpoint, args.ready_runs)?;
+    let ready_p =
+        Percentiles::of(ready.iter().map(|d| d.as_nanos() as u64).collect()).context("no start")?;
+    eprintln!("start-to-ready: {ready_p}");
+    Ok(vec![
+        row(
+            &format!(
+                "idle CPU, {} silent sources, {:.0} s (share of one core)",
+                args.idle_sources, args.idle_seconds
+            ),
+            format!("{:.3}%", idle[0] * 100.0),
+            format!("{:.3}%", idle[1] * 100.0),
+            "< 0.5%".into(),
+            Some(idle[1] < 0.005),
+        ),
+        row(
+            &format!(
+                "start-to-ready (spawn → liveliness token + iceoryx2 services), median / max of {}",
+                ready.len()
+            ),
+            "–".into(),
+            format!("{:.1} ms / {:.1} ms", ms(ready_p.p50), ms(ready_p.max)),
+            "median < 250 ms".into(),
+            Some(ready_p.p50 < Duration::from_millis(250)),
+        ),
+    ])
 }

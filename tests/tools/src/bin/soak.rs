@@ -1,15 +1,12 @@
 //! `soak`: N sources at a fixed rate against ghnetd for a long time. Every sample must
 //! get exactly one heading on iceoryx2 and on Zenoh (same value on both), and ghnetd's
-//! resident memory must stay flat after a warm-up.
-//!
-//! Teaches: the exactly-once contract (`seq` is echoed; `Stale` status messages answer
-//! no sample), one `WaitSet` for many heading subscribers, and how to watch a daemon's
-//! memory. The logic is `ghnet_examples::soak` (the CI soak test runs it too).
-//! Exit status 0 = pass, 1 = loss, duplicate, mismatch or memory growth, 2 = error.
+//! resident memory must stay flat after a warm-up. The logic is `ghnet_tools::soak`
+//! (the CI soak test runs it too). Exit status 0 = pass, 1 = loss, duplicate, mismatch
+//! or memory growth, 2 = error.
 //!
 //! ```text
-//! cargo build --release -p ghnetd -p ghnet-examples
-//! # its own ghnetd (next to this binary), private namespace, Zenoh on a free port:
+//! cargo build --release -p ghnetd -p ghnet-tools
+//! # its own ghnetd (next to this binary), private namespace, Zenoh on a unix socket:
 //! target/release/soak --spawn-daemon --sources 100 --rate 10 --duration 3600 --report-every 60
 //! # against a running ghnetd (discovery on, sources.max_sources >= --sources):
 //! target/release/soak --sources 20 --daemon-pid "$(pidof ghnetd)"
@@ -21,15 +18,17 @@ use std::time::Duration;
 
 use anyhow::Context;
 use clap::Parser;
-use ghnet_examples::soak::{self, ghnetd_next_to_exe, Options, SpawnedGhnetd};
-use ghnet_examples::CommonArgs;
+use ghnet_client::IpcConfig;
+use ghnet_testkit::{Ghnetd, TestNamespace};
+use ghnet_tools::soak::{self, Options, Report};
 
 /// Soak test: N sources × rate × duration; exactly-once on iceoryx2 and Zenoh, and
 /// ghnetd's resident memory flat after the warm-up.
 #[derive(Parser)]
 struct Args {
-    #[command(flatten)]
-    common: CommonArgs,
+    /// Service prefix: must match ghnetd's `ipc.service_prefix`.
+    #[arg(long, default_value = ghnet_client::DEFAULT_PREFIX)]
+    prefix: String,
     /// Number of sources, named `soak<pid>-<i>`.
     #[arg(long, default_value_t = 100)]
     sources: usize,
@@ -39,17 +38,14 @@ struct Args {
     /// Seconds to publish.
     #[arg(long, default_value_t = 60.0)]
     duration: f64,
-    /// Start a ghnetd of its own (this binary, or `ghnetd` next to `soak`) in a private
-    /// iceoryx2 namespace, serving exactly the soak's sources, Zenoh on a free
-    /// loopback port; SIGTERM at the end. It reads `GHNETD_CONFIG` (e.g. the model).
+    /// Start a ghnetd of its own (`ghnetd` next to `soak`, or PATH) in a private
+    /// iceoryx2 namespace, serving exactly the soak's sources, Zenoh on a unix socket;
+    /// SIGTERM at the end. `GHNETD_CONFIG`, if set, is passed as its `--config`.
     #[arg(long, value_name = "PATH")]
     spawn_daemon: Option<Option<PathBuf>>,
     /// Where the spawned ghnetd logs (default: a file in the temp dir, named at start).
     #[arg(long, value_name = "FILE")]
     daemon_log: Option<PathBuf>,
-    /// Seconds between the spawned ghnetd's per-source counter lines.
-    #[arg(long, default_value_t = 60, value_name = "S")]
-    daemon_stats_interval: u64,
     /// A running ghnetd's process id, to watch its memory (`pidof ghnetd`).
     #[arg(long, value_name = "PID", conflicts_with = "spawn_daemon")]
     daemon_pid: Option<u32>,
@@ -85,63 +81,18 @@ fn main() -> ExitCode {
     }
 }
 
-fn seconds(s: f64, what: &str) -> anyhow::Result<Duration> {
-    Duration::try_from_secs_f64(s).with_context(|| format!("{what}: {s} is not a duration"))
-}
-
 fn run(args: Args) -> anyhow::Result<bool> {
-    let prefix = &args.common.prefix;
-    let mut opts = Options::new(args.common.ipc()?, &format!("soak{}", std::process::id()));
-    opts.sources = args.sources;
-    opts.rate_hz = args.rate;
-    opts.duration = seconds(args.duration, "--duration")?;
-    opts.warmup = args.warmup.map(|w| seconds(w, "--warmup")).transpose()?;
-    opts.rss_limit_kb = args.rss_limit_kb;
-    opts.report_every = seconds(args.report_every, "--report-every")?;
-    opts.drain_timeout = seconds(args.drain_timeout, "--drain-timeout")?;
-    anyhow::ensure!(
-        args.rate > 0.0 && args.rate.is_finite(),
-        "--rate must be > 0"
-    );
-
+    let mut opts = options(&args)?;
+    // Declared before the daemon: dropped after it is reaped.
+    let ns = TestNamespace::new("soak");
     let daemon = match &args.spawn_daemon {
-        Some(path) => {
-            let bin = match path {
-                Some(p) => p.clone(),
-                None => ghnetd_next_to_exe().context(
-                    "no ghnetd next to this binary: `cargo build --release -p ghnetd` \
-                     or pass --spawn-daemon PATH",
-                )?,
-            };
-            let log = (args.daemon_log.clone()).unwrap_or_else(|| {
-                std::env::temp_dir().join(format!("ghnet-soak-{}-ghnetd.log", std::process::id()))
-            });
-            let d = SpawnedGhnetd::start(
-                &bin,
-                prefix,
-                &opts.daemon_sources(),
-                args.daemon_stats_interval,
-                &log,
-                opts.patience,
-            )?;
-            println!(
-                "ghnetd {} (pid {}), log {}",
-                bin.display(),
-                d.pid(),
-                log.display()
-            );
-            opts.ipc = d.ipc(prefix)?;
-            opts.zenoh_connect = (!args.no_zenoh).then(|| d.zenoh_endpoint().to_owned());
-            opts.daemon_pid = Some(d.pid());
-            Some(d)
-        }
+        Some(path) => Some(spawn_daemon(&args, path.as_ref(), &ns, &mut opts)?),
         None => {
             opts.zenoh_connect = (!args.no_zenoh).then(|| args.connect.clone());
             opts.daemon_pid = args.daemon_pid;
             None
         }
     };
-
     let report = soak::run(&opts).with_context(|| {
         format!(
             "soak of {} sources (a running ghnetd needs discovery on and \
@@ -151,8 +102,62 @@ fn run(args: Args) -> anyhow::Result<bool> {
     })?;
     print!("{report}");
     if let Some(d) = daemon {
-        println!("ghnetd exited: {}", d.stop(Duration::from_secs(10))?);
+        let warnings: Vec<String> = (d.log().lines())
+            .filter(|l| l.contains(" WARN ") || l.contains(" ERROR "))
+            .map(|l| format!("ghnetd: {l}\n"))
+            .collect();
+        print!("{}", warnings.concat());
+        println!("ghnetd exited: {}", d.try_stop(Duration::from_secs(10))?);
     }
+    print_verdict(&report);
+    Ok(report.failures().is_empty())
+}
+
+fn options(args: &Args) -> anyhow::Result<Options> {
+    let seconds = |s: f64, what: &str| {
+        Duration::try_from_secs_f64(s).with_context(|| format!("{what}: {s} is not a duration"))
+    };
+    let ipc = IpcConfig::new(&args.prefix).context("--prefix")?;
+    let mut opts = Options::new(ipc, &format!("soak{}", std::process::id()));
+    opts.sources = args.sources;
+    opts.rate_hz = args.rate;
+    opts.duration = seconds(args.duration, "--duration")?;
+    opts.warmup = args.warmup.map(|w| seconds(w, "--warmup")).transpose()?;
+    opts.rss_limit_kb = args.rss_limit_kb;
+    opts.report_every = seconds(args.report_every, "--report-every")?;
+    opts.drain_timeout = seconds(args.drain_timeout, "--drain-timeout")?;
+    Ok(opts)
+}
+
+/// A ghnetd for the soak in `ns`; points `opts` at it.
+fn spawn_daemon(
+    args: &Args,
+    path: Option<&PathBuf>,
+    ns: &TestNamespace,
+    opts: &mut Options,
+) -> anyhow::Result<Ghnetd> {
+    let log = (args.daemon_log.clone()).unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("ghnet-soak-{}-ghnetd.log", std::process::id()))
+    });
+    let mut builder = (opts.daemon(ns).default_discovery_interval())
+        .no_model_flag()
+        .log_file(&log);
+    if let Some(p) = path {
+        builder = builder.program(p, &[]);
+    }
+    if let Some(config) = std::env::var_os("GHNETD_CONFIG") {
+        builder = builder.arg("--config").arg(config);
+    }
+    let d = builder.try_spawn()?;
+    d.try_wait_ready(opts.patience)?;
+    println!("ghnetd (pid {}), log {}", d.pid(), log.display());
+    opts.ipc = d.ipc().clone();
+    opts.zenoh_connect = (!args.no_zenoh).then(|| d.zenoh_endpoint().to_owned());
+    opts.daemon_pid = Some(d.pid());
+    Ok(d)
+}
+
+fn print_verdict(report: &Report) {
     let failures = report.failures();
     let interrupted = if report.interrupted {
         format!(
@@ -172,5 +177,4 @@ fn run(args: Args) -> anyhow::Result<bool> {
     } else {
         println!("FAIL{interrupted}: {}", failures.join("; "));
     }
-    Ok(failures.is_empty())
 }
