@@ -4,8 +4,8 @@
 //! # Layout
 //!
 //! - [`CommonArgs`] — `--prefix`, flattened into every example; gives the
-//!   [`IpcConfig`] all ghnet helpers take. [`ZenohArgs`] — `--connect` /
-//!   `--zenoh-config` of the Zenoh examples.
+//!   [`IpcConfig`] all ghnet helpers take. [`SourceArgs`] — `--prefix` and `--source`.
+//!   [`ZenohArgs`] — `--connect` / `--zenoh-config` of the Zenoh examples.
 //! - [`pacing_node`], [`Pacer`], [`wait_for_subscriber`] — an iceoryx2 node whose
 //!   `wait` paces a loop and reports Ctrl-C / SIGTERM (the iceoryx2 idiom
 //!   `while node.wait(cycle).is_ok()`), a fixed-rate schedule on it, and the wait for
@@ -48,6 +48,25 @@ impl CommonArgs {
     /// `ghnetd` started without iceoryx2 overrides lives).
     pub fn ipc(&self) -> anyhow::Result<IpcConfig> {
         IpcConfig::new(&self.prefix).context("--prefix")
+    }
+}
+
+/// `--prefix` and `--source`: the services of one source, for the examples that
+/// publish or read them.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SourceArgs {
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub common: CommonArgs,
+    /// Source name: the `<source>` level of the service names.
+    #[arg(long = "source", default_value = "gnss0", value_name = "SOURCE")]
+    pub name: String,
+}
+
+impl SourceArgs {
+    /// See [`CommonArgs::ipc`].
+    pub fn ipc(&self) -> anyhow::Result<IpcConfig> {
+        self.common.ipc()
     }
 }
 
@@ -254,42 +273,22 @@ pub mod table {
 
     /// The columns, left to right.
     pub const COLUMNS: &[Column] = &[
-        Column {
-            title: "seq",
-            width: 10,
-            cell: |h, _| h.seq.to_string(),
-        },
-        Column {
-            title: "heading°",
-            width: 8,
-            cell: |h, _| format!("{:.2}", h.heading_deg),
-        },
-        Column {
-            title: "σ°",
-            width: 6,
-            cell: |h, _| format!("{:.2}", h.heading_std_deg),
-        },
-        Column {
-            title: "atan2°",
-            width: 7,
-            cell: |h, _| format!("{:.2}", h.atan2_deg),
-        },
-        Column {
-            title: "speed m/s",
-            width: 10,
-            cell: |h, _| format!("{:.3}", h.speed),
-        },
-        Column {
-            title: "status",
-            width: 12,
-            cell: |h, _| status(h),
-        },
-        Column {
-            title: "latency",
-            width: 9,
-            cell: |_, l| format!("{l:.1?}"),
-        },
+        column("seq", 10, |h, _| h.seq.to_string()),
+        column("heading°", 8, |h, _| format!("{:.2}", h.heading_deg)),
+        column("σ°", 6, |h, _| format!("{:.2}", h.heading_std_deg)),
+        column("atan2°", 7, |h, _| format!("{:.2}", h.atan2_deg)),
+        column("speed m/s", 10, |h, _| format!("{:.3}", h.speed)),
+        column("status", 12, |h, _| status(h)),
+        column("latency", 9, |_, l| format!("{l:.1?}")),
     ];
+
+    const fn column(
+        title: &'static str,
+        width: usize,
+        cell: fn(&HeadingEstimate, Duration) -> String,
+    ) -> Column {
+        Column { title, width, cell }
+    }
 
     /// Column titles, aligned with [`row`].
     pub fn header() -> String {

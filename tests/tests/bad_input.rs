@@ -101,12 +101,7 @@ fn check(want: Want, h: &HeadingEstimate, what: &str) {
 /// counters, and a clean exit.
 fn run_case(name: &str, case: impl FnOnce(u64) -> Vec<(VelocitySample, Want)>, adds: Adds) {
     let source = "bad";
-    let OneSource {
-        ns: _ns,
-        daemon,
-        headings,
-        gnss,
-    } = OneSource::start(source, |b| b);
+    let one = OneSource::start(source, |b| b);
 
     let t0 = now_ns();
     let mut samples = vec![(good(t0, 0), Want::Moving)];
@@ -117,8 +112,8 @@ fn run_case(name: &str, case: impl FnOnce(u64) -> Vec<(VelocitySample, Want)>, a
     samples.push((after, Want::Moving));
 
     for (i, (sample, want)) in samples.iter().enumerate() {
-        gnss.send(*sample).unwrap();
-        let h = next_answer(&headings, &daemon);
+        one.gnss.send(*sample).unwrap();
+        let h = next_answer(&one.headings, &one.daemon);
         let what = format!("{name}, sample {i} {sample:?}");
         assert_eq!(
             (h.seq, h.timestamp_ns),
@@ -128,7 +123,7 @@ fn run_case(name: &str, case: impl FnOnce(u64) -> Vec<(VelocitySample, Want)>, a
         check(*want, &h, &what);
     }
     assert!(
-        headings
+        one.headings
             .recv_timeout(Duration::from_millis(100))
             .unwrap()
             .is_none_or(|h| h.heading_status() == Some(HeadingStatus::Stale)),
@@ -136,7 +131,7 @@ fn run_case(name: &str, case: impl FnOnce(u64) -> Vec<(VelocitySample, Want)>, a
     );
 
     let n = samples.len() as u64;
-    let c = daemon.wait_for_counters(source, |c| c["received"] == n);
+    let c = one.daemon.wait_for_counters(source, |c| c["received"] == n);
     let got = [
         c["answered"],
         c["send_errors"],
@@ -157,7 +152,7 @@ fn run_case(name: &str, case: impl FnOnce(u64) -> Vec<(VelocitySample, Want)>, a
         got, want,
         "{name}: [answered, send_errors, invalid, gaps, duplicates, backwards] of {n}: {c:?}"
     );
-    daemon.stop();
+    one.daemon.stop();
 }
 
 /// Sample `seq` at `t0 + seq` ms with `f` applied.
@@ -305,12 +300,7 @@ fn exactly_zero_velocity_is_stationary() {
 /// from the previous sample: each answer depends on its own sample only.
 #[test]
 fn zero_velocity_answer_carries_no_held_heading() {
-    let OneSource {
-        ns: _ns,
-        daemon,
-        headings,
-        gnss,
-    } = OneSource::start("z", |b| b.listen(Listen::Off));
+    let one = OneSource::start("z", |b| b.listen(Listen::Off));
     let t0 = now_ns();
     let mut zero_answers = Vec::new();
     // Zero velocity after heading east, then after heading west: same answer.
@@ -319,9 +309,10 @@ fn zero_velocity_answer_carries_no_held_heading() {
         .enumerate()
     {
         let seq = i as u64;
-        gnss.send(VelocitySample::new(t0 + seq, seq, vn, ve, 0.0))
+        one.gnss
+            .send(VelocitySample::new(t0 + seq, seq, vn, ve, 0.0))
             .unwrap();
-        let h = next_answer(&headings, &daemon);
+        let h = next_answer(&one.headings, &one.daemon);
         if ve == 0.0 {
             check(Want::Stationary, &h, "zero");
             assert_eq!(h.atan2_deg, 0.0, "{h:?}");
@@ -517,19 +508,14 @@ fn sequence_jumps_to_u64_max_and_back_saturate_the_counters() {
 #[test]
 fn undecodable_zenoh_payloads_are_errors_and_the_subscriber_goes_on() {
     let source = "zg";
-    let OneSource {
-        ns: _ns,
-        daemon,
-        headings: ice,
-        gnss,
-    } = OneSource::start(source, |b| b);
-    let ipc = daemon.ipc().clone();
+    let one = OneSource::start(source, |b| b);
+    let ipc = one.daemon.ipc().clone();
 
     // The consumer: connected to the daemon and listening for the garbage publisher.
     let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
     let config = ghnet_client::peer_config(
         std::slice::from_ref(&endpoint),
-        &[daemon.zenoh_endpoint().to_owned()],
+        &[one.daemon.zenoh_endpoint().to_owned()],
     )
     .unwrap();
     let consumer = ghnet_client::zenoh::open(config).wait().unwrap();
@@ -568,9 +554,10 @@ fn undecodable_zenoh_payloads_are_errors_and_the_subscriber_goes_on() {
         }
         // The next real heading from ghnetd still decodes.
         let seq = i as u64;
-        gnss.send(VelocitySample::new(t0 + seq, seq, 3.0, 4.0, 0.0))
+        one.gnss
+            .send(VelocitySample::new(t0 + seq, seq, 3.0, 4.0, 0.0))
             .unwrap();
-        let from_ice = next_answer(&ice, &daemon);
+        let from_ice = next_answer(&one.headings, &one.daemon);
         let h = loop {
             let h = sub
                 .recv_timeout(WATCHDOG)
@@ -583,5 +570,5 @@ fn undecodable_zenoh_payloads_are_errors_and_the_subscriber_goes_on() {
         assert_eq!(h.to_le_bytes(), from_ice.to_le_bytes(), "payload {i}");
         assert_eq!(h.seq, seq);
     }
-    assert!(daemon.is_running());
+    assert!(one.daemon.is_running());
 }

@@ -6,7 +6,9 @@ use std::time::Duration;
 use ghnet_client::{flags, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
 use ghnet_lab::sim::{simulate_realistic, RealisticParams};
 use ghnet_models::{Predictor, Status, StatusPolicy};
-use ghnet_testkit::{now_ns, test_model, Ghnetd, OneSource, TestNamespace, WATCHDOG};
+use ghnet_testkit::{
+    assert_silent, now_ns, test_model, Ghnetd, OneSource, TestNamespace, WATCHDOG,
+};
 
 /// `|a - b| <= 1e-6 · max(1, |b|)`, both NaN counting as equal, and headings that
 /// differ by a full turn (359.9999… vs 0) counting as equal when `wrap_360`.
@@ -31,12 +33,7 @@ fn wire(s: Status) -> HeadingStatus {
 
 #[test]
 fn heading_equals_in_process_model_and_echoes_seq_and_timestamp() {
-    let OneSource {
-        ns: _ns,
-        daemon,
-        headings,
-        gnss,
-    } = OneSource::start("echo", |b| b);
+    let one = OneSource::start("echo", |b| b);
 
     // Every compass direction, the status boundaries, and a realistic track.
     let mut inputs: Vec<(f32, f32)> = vec![
@@ -72,9 +69,14 @@ fn heading_equals_in_process_model_and_echoes_seq_and_timestamp() {
             t_base + i as u64 * 1_000,
         );
         // Speed accuracy unknown (NaN, the `new` default): the model input is (vn, ve).
-        gnss.send(VelocitySample::new(ts, seq, vn, ve, 0.1))
+        one.gnss
+            .send(VelocitySample::new(ts, seq, vn, ve, 0.1))
             .unwrap();
-        let h = headings.recv_timeout(WATCHDOG).unwrap().expect("an answer");
+        let h = one
+            .headings
+            .recv_timeout(WATCHDOG)
+            .unwrap()
+            .expect("an answer");
         assert_eq!((h.seq, h.timestamp_ns), (seq, ts), "echo of input {i}");
 
         let want = predictor.predict(vn, ve);
@@ -109,11 +111,8 @@ fn heading_equals_in_process_model_and_echoes_seq_and_timestamp() {
         "the boundary inputs must be covered"
     );
     // Exactly one answer per sample.
-    assert!(headings
-        .recv_timeout(std::time::Duration::from_millis(200))
-        .unwrap()
-        .is_none());
-    drop(daemon);
+    assert_silent(&one.headings, Duration::from_millis(200));
+    drop(one.daemon);
 }
 
 /// Several sources with samples waiting when ghnetd wakes (receivers on one epoch,
@@ -201,12 +200,7 @@ fn sources_waking_together_get_their_own_answers_in_order() {
                 );
             }
         }
-        assert!(
-            sub.recv_timeout(std::time::Duration::from_millis(100))
-                .unwrap()
-                .is_none(),
-            "source {k}: exactly one answer per sample"
-        );
+        assert_silent(sub, Duration::from_millis(100)); // exactly one answer per sample
     }
     drop(daemon);
 }
@@ -216,12 +210,7 @@ fn sources_waking_together_get_their_own_answers_in_order() {
 /// are counted.
 #[test]
 fn ping_pong_and_a_burst_are_answered_once_each_and_counted() {
-    let OneSource {
-        ns: _ns,
-        daemon,
-        headings,
-        gnss,
-    } = OneSource::start("pingpong", |b| b);
+    let one = OneSource::start("pingpong", |b| b);
     let sample = |seq: u64| {
         let mut s = VelocitySample::new(1_000_000 + seq * 100, seq, 5.0, 5.0, 0.0);
         s.speed_accuracy = 0.1;
@@ -233,8 +222,12 @@ fn ping_pong_and_a_burst_are_answered_once_each_and_counted() {
         if seq % 10 == 9 {
             s.v_north = f32::NAN; // invalid input is answered, not dropped
         }
-        gnss.send(s).unwrap();
-        let h = headings.recv_timeout(WATCHDOG).unwrap().expect("answer");
+        one.gnss.send(s).unwrap();
+        let h = one
+            .headings
+            .recv_timeout(WATCHDOG)
+            .unwrap()
+            .expect("answer");
         assert_eq!((h.seq, h.timestamp_ns), (s.seq, s.timestamp_ns));
         if seq % 10 == 9 {
             assert_eq!(h.heading_status(), Some(HeadingStatus::InvalidInput));
@@ -253,28 +246,34 @@ fn ping_pong_and_a_burst_are_answered_once_each_and_counted() {
     }
     // A burst (below the subscriber buffer) in one notification: all answered, in order.
     for seq in n..2 * n {
-        gnss.publish(sample(seq)).unwrap();
+        one.gnss.publish(sample(seq)).unwrap();
     }
-    gnss.notify().unwrap();
+    one.gnss.notify().unwrap();
     for seq in n..2 * n {
-        let h = headings.recv_timeout(WATCHDOG).unwrap().expect("answer");
+        let h = one
+            .headings
+            .recv_timeout(WATCHDOG)
+            .unwrap()
+            .expect("answer");
         assert_eq!(h.seq, seq);
     }
-    assert!(headings
-        .recv_timeout(Duration::from_millis(200))
-        .unwrap()
-        .is_none());
+    assert_silent(&one.headings, Duration::from_millis(200));
 
-    gnss.send(sample(2 * n + 5)).unwrap(); // 5 missing
-    gnss.send(sample(2 * n + 5)).unwrap(); // a duplicate
+    one.gnss.send(sample(2 * n + 5)).unwrap(); // 5 missing
+    one.gnss.send(sample(2 * n + 5)).unwrap(); // a duplicate
     let mut back = sample(2 * n + 6);
     (back.timestamp_ns, back.flags) = (1, flags::SIMULATED);
-    gnss.send(back).unwrap();
+    one.gnss.send(back).unwrap();
     for _ in 0..3 {
-        headings.recv_timeout(WATCHDOG).unwrap().expect("answer");
+        one.headings
+            .recv_timeout(WATCHDOG)
+            .unwrap()
+            .expect("answer");
     }
     // 203 received and answered; 10 NaN and 1 backwards invalid.
-    let c = daemon.wait_for_counters("pingpong", |c| c["received"] == 2 * n + 3);
+    let c = one
+        .daemon
+        .wait_for_counters("pingpong", |c| c["received"] == 2 * n + 3);
     let got = [
         c["answered"],
         c["invalid"],
@@ -283,5 +282,5 @@ fn ping_pong_and_a_burst_are_answered_once_each_and_counted() {
         c["backwards"],
     ];
     assert_eq!(got, [2 * n + 3, 11, 5, 1, 1], "{c:?}");
-    daemon.stop();
+    one.daemon.stop();
 }

@@ -11,7 +11,8 @@ use ghnet_client::{
     VelocitySample, VelocitySubscriber, SERVICE_SETTINGS,
 };
 use ghnet_testkit::{
-    list_nodes, now_ns, recv_answer, wait_until, ChildSubscriber, Ghnetd, TestNamespace, WATCHDOG,
+    assert_silent, list_nodes, now_ns, recv_answer, wait_until, ChildSubscriber, Ghnetd,
+    TestNamespace, WATCHDOG,
 };
 
 fn sample(seq: u64) -> VelocitySample {
@@ -29,14 +30,9 @@ fn round_trip(gnss: &VelocityPublisher, headings: &HeadingSubscriber, seq: u64) 
 #[test]
 fn subscriber_kill9_daemon_goes_on_and_a_new_subscriber_is_served() {
     let ns = TestNamespace::new("subkill9");
-    let ipc = ns.ipc();
     let daemon = Ghnetd::builder(&ns).start();
-    let veh = VelocityPublisher::new(&ipc, "veh").unwrap();
-    let other = VelocityPublisher::new(&ipc, "other").unwrap();
-    let veh_headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
-    let other_headings = HeadingSubscriber::new(&ipc, "other").unwrap();
-    daemon.wait_serving(&veh);
-    daemon.wait_serving(&other);
+    let (veh, veh_headings) = daemon.ends("veh");
+    let (other, other_headings) = daemon.ends("other");
 
     let child = ChildSubscriber::spawn(&ns, "veh");
     let mut seq = 0;
@@ -85,15 +81,10 @@ fn subscriber_kill9_daemon_goes_on_and_a_new_subscriber_is_served() {
 #[test]
 fn a_stuck_subscriber_slows_nobody_and_its_losses_are_counted() {
     let ns = TestNamespace::new("stuck");
-    let ipc = ns.ipc();
     let daemon = Ghnetd::builder(&ns).start();
-    let veh = VelocityPublisher::new(&ipc, "veh").unwrap();
-    let other = VelocityPublisher::new(&ipc, "other").unwrap();
-    let stuck = HeadingSubscriber::new(&ipc, "veh").unwrap();
-    let reader = HeadingSubscriber::new(&ipc, "veh").unwrap();
-    let other_reader = HeadingSubscriber::new(&ipc, "other").unwrap();
-    daemon.wait_serving(&veh);
-    daemon.wait_serving(&other);
+    let stuck = HeadingSubscriber::new(daemon.ipc(), "veh").unwrap();
+    let (veh, reader) = daemon.ends("veh");
+    let (other, other_reader) = daemon.ends("other");
 
     // The stuck subscriber reads the first heading, then stops reading.
     round_trip(&veh, &reader, 0);
@@ -135,16 +126,11 @@ fn a_stuck_subscriber_slows_nobody_and_its_losses_are_counted() {
 fn a_silent_source_gets_one_stale_message_and_is_served_again() {
     let ns = TestNamespace::new("stale");
     let ipc = ns.ipc();
-    let daemon = Ghnetd::builder(&ns)
-        .arg("--stale-after-ms")
-        .arg("300")
-        .start();
-    let headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
+    let daemon = Ghnetd::builder(&ns).arg("--stale-after-ms=300").start();
     let session = daemon.connect();
     let zen = ghnet_client::ZenohHeadingSubscriber::new(&session, &ipc, "veh").unwrap();
     ghnet_testkit::zenoh_barrier(&session, &ipc);
-    let gnss = VelocityPublisher::new(&ipc, "veh").unwrap();
-    daemon.wait_serving(&gnss);
+    let (gnss, headings) = daemon.ends("veh");
 
     let mut last_sent = sample(0);
     for seq in 0..3 {
@@ -178,10 +164,7 @@ fn a_silent_source_gets_one_stale_message_and_is_served_again() {
     );
     daemon.wait_for_log("source stale");
     // Several deadlines later, still only the one.
-    assert!(headings
-        .recv_timeout(Duration::from_millis(1500))
-        .unwrap()
-        .is_none());
+    assert_silent(&headings, Duration::from_millis(1500));
     let stats = daemon.wait_for_counters("veh", |s| s["stale"] == 1);
     assert_eq!((stats["received"], stats["answered"]), (3, 3));
 
@@ -205,26 +188,16 @@ fn a_silent_source_gets_one_stale_message_and_is_served_again() {
 #[test]
 fn stale_off_sends_nothing() {
     let ns = TestNamespace::new("staleoff");
-    let ipc = ns.ipc();
-    let daemon = Ghnetd::builder(&ns)
-        .arg("--stale-after-ms")
-        .arg("0")
-        .start();
-    let headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
-    let gnss = VelocityPublisher::new(&ipc, "veh").unwrap();
-    daemon.wait_serving(&gnss);
+    let daemon = Ghnetd::builder(&ns).arg("--stale-after-ms=0").start();
+    let (gnss, headings) = daemon.ends("veh");
     round_trip(&gnss, &headings, 0);
-    assert!(headings
-        .recv_timeout(Duration::from_millis(1000))
-        .unwrap()
-        .is_none());
+    assert_silent(&headings, Duration::from_millis(1000));
     assert!(!daemon.log().contains("source stale"));
 }
 
 #[test]
 fn a_second_daemon_on_the_same_prefix_exits_naming_the_first() {
     let ns = TestNamespace::new("second");
-    let ipc = ns.ipc();
     let first = Ghnetd::builder(&ns).start();
 
     let second = Ghnetd::builder(&ns).spawn();
@@ -242,9 +215,7 @@ fn a_second_daemon_on_the_same_prefix_exits_naming_the_first() {
     elsewhere.assert_running();
 
     // The first one still serves.
-    let headings = HeadingSubscriber::new(&ipc, "veh").unwrap();
-    let gnss = VelocityPublisher::new(&ipc, "veh").unwrap();
-    first.wait_serving(&gnss);
+    let (gnss, headings) = first.ends("veh");
     round_trip(&gnss, &headings, 0);
 
     // A kill -9 leaves no stale lock: the next one starts and serves.
@@ -257,18 +228,23 @@ fn a_second_daemon_on_the_same_prefix_exits_naming_the_first() {
     third.stop();
 }
 
+/// As many subscribers as a service has slots.
+fn every_slot<T>(subscribe: impl Fn() -> T) -> Vec<T> {
+    (0..SERVICE_SETTINGS.max_subscribers)
+        .map(|_| subscribe())
+        .collect()
+}
+
 #[test]
 fn the_subscriber_over_the_limit_gets_a_message_naming_the_key() {
     let ns = TestNamespace::new("overlimit");
     let ipc = ns.ipc();
-    let max = SERVICE_SETTINGS.max_subscribers;
-    let _full: Vec<_> = (0..max)
-        .map(|_| HeadingSubscriber::new(&ipc, "veh").unwrap())
-        .collect();
+    let _full = every_slot(|| HeadingSubscriber::new(&ipc, "veh").unwrap());
     let err = HeadingSubscriber::new(&ipc, "veh")
         .err()
         .expect("over the limit");
     assert!(matches!(err, OpenError::Limit { .. }), "{err:?}");
+    let max = SERVICE_SETTINGS.max_subscribers;
     assert_eq!(
         err.to_string(),
         format!(
@@ -297,9 +273,7 @@ fn a_source_over_the_limit_is_logged_and_the_others_are_served() {
     let ipc = ns.ipc();
     // Every subscriber slot of `full`'s velocity service taken before ghnetd comes.
     let max = SERVICE_SETTINGS.max_subscribers;
-    let _taken: Vec<_> = (0..max)
-        .map(|_| VelocitySubscriber::new(&ipc, "full").unwrap())
-        .collect();
+    let _taken = every_slot(|| VelocitySubscriber::new(&ipc, "full").unwrap());
     let full = VelocityPublisher::new(&ipc, "full").unwrap();
     let daemon = Ghnetd::builder(&ns).start();
     daemon.wait_for_log("cannot serve discovered source");
@@ -316,9 +290,7 @@ fn a_source_over_the_limit_is_logged_and_the_others_are_served() {
         "{line}"
     );
 
-    let headings = HeadingSubscriber::new(&ipc, "ok").unwrap();
-    let gnss = VelocityPublisher::new(&ipc, "ok").unwrap();
-    daemon.wait_serving(&gnss);
+    let (gnss, headings) = daemon.ends("ok");
     round_trip(&gnss, &headings, 0);
     assert_eq!(full.subscriber_count(), max, "ghnetd did not take a slot");
     assert_eq!(

@@ -3,23 +3,23 @@
 use std::time::Duration;
 
 use ghnet_client::{VelocityPublisher, VelocitySample};
-use ghnet_testkit::{now_ns, Ghnetd, OneSource, TestNamespace, WATCHDOG};
+use ghnet_testkit::{assert_silent, now_ns, Ghnetd, OneSource, TestNamespace, WATCHDOG};
 
 #[test]
 fn sigterm_answers_what_was_received_and_exits_zero() {
-    let OneSource {
-        ns: _ns,
-        daemon,
-        headings,
-        gnss,
-    } = OneSource::start("term", |b| b);
+    let one = OneSource::start("term", |b| b);
 
     // One round trip first. It also connects our subscriber to the daemon's heading
     // publisher: iceoryx2 connects a subscriber on `receive`, and answers of a
     // publisher that is gone before a subscriber's first `receive` never reach it.
-    gnss.send(VelocitySample::new(now_ns(), 0, 1.0, 2.0, 0.0))
+    one.gnss
+        .send(VelocitySample::new(now_ns(), 0, 1.0, 2.0, 0.0))
         .unwrap();
-    let first = headings.recv_timeout(WATCHDOG).unwrap().expect("answer");
+    let first = one
+        .headings
+        .recv_timeout(WATCHDOG)
+        .unwrap()
+        .expect("answer");
     assert_eq!(first.seq, 0);
 
     // A burst (below the 128-sample buffers), then SIGTERM at once: whatever the
@@ -27,26 +27,24 @@ fn sigterm_answers_what_was_received_and_exits_zero() {
     let n = 101u64;
     for seq in 1..n {
         let s = VelocitySample::new(now_ns(), seq, 1.0, 2.0, 0.0);
-        gnss.publish(s).unwrap();
+        one.gnss.publish(s).unwrap();
     }
-    gnss.notify().unwrap();
-    let log = daemon.stop();
+    one.gnss.notify().unwrap();
+    let log = one.daemon.stop();
     assert!(log.contains("ghnetd stopped"), "{log}");
 
     // Every answer reached us exactly once, also after the daemon is gone.
     for seq in 1..n {
-        let h = headings
+        let h = one
+            .headings
             .recv_timeout(WATCHDOG)
             .unwrap()
             .unwrap_or_else(|| panic!("answer {seq} of {n} missing after shutdown\n{log}"));
         assert_eq!(h.seq, seq);
     }
-    assert!(headings
-        .recv_timeout(Duration::from_millis(100))
-        .unwrap()
-        .is_none());
+    assert_silent(&one.headings, Duration::from_millis(100));
     // The daemon released its ports: no subscriber left on the velocity service.
-    assert_eq!(gnss.subscriber_count(), 0);
+    assert_eq!(one.gnss.subscriber_count(), 0);
 }
 
 #[test]

@@ -76,13 +76,7 @@ fn next_zenoh(
 #[test]
 fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
     let ZenohSource { zen, session, one } = ZenohSource::start("z0");
-    let OneSource {
-        ns: _ns,
-        daemon,
-        headings: ice,
-        gnss,
-    } = one;
-    let ipc = daemon.ipc().clone();
+    let ipc = one.daemon.ipc().clone();
     assert_eq!(zen.key(), "ghnet/z0/heading");
 
     // Valid, stationary, invalid (NaN) and fast inputs; large sequence numbers.
@@ -97,9 +91,11 @@ fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
             2 => (60.0, -20.0),
             _ => (i as f32 * 0.1, 3.0),
         };
-        gnss.send(VelocitySample::new(t0 + i, first + i, vn, ve, 0.0))
+        one.gnss
+            .send(VelocitySample::new(t0 + i, first + i, vn, ve, 0.0))
             .unwrap();
-        let h = ice
+        let h = one
+            .headings
             .recv_timeout(WATCHDOG)
             .unwrap()
             .expect("iceoryx2 answer");
@@ -107,7 +103,7 @@ fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
     }
     let mut from_zenoh: BTreeMap<u64, [u8; 64]> = BTreeMap::new();
     while from_zenoh.len() < n as usize {
-        let h = next_zenoh(&zen, &daemon, from_zenoh.len(), n as usize);
+        let h = next_zenoh(&zen, &one.daemon, from_zenoh.len(), n as usize);
         assert!(h.seq >= first, "warm-up heading after the drain: {h:?}");
         assert!(
             from_zenoh.insert(h.seq, h.to_le_bytes()).is_none(),
@@ -123,19 +119,24 @@ fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
         .is_none());
 
     // Stats: the loop refreshes the snapshot per wake-up; the last one is in.
-    let z0 = daemon.wait_for_counters("z0", |c| c.get("last_seq") == Some(&(first + n - 1)));
+    let z0 = one
+        .daemon
+        .wait_for_counters("z0", |c| c.get("last_seq") == Some(&(first + n - 1)));
     let received = z0["received"];
     assert_eq!(z0["answered"], received, "{z0:?}");
     assert!(received >= n, "{z0:?}");
     assert!(z0["invalid"] >= n / 4, "{z0:?}");
-    let stats = daemon.stats();
+    let stats = one.daemon.stats();
     let processing = &stats["sources"]["z0"]["processing"];
     assert!(processing["p50_ns"].as_u64().unwrap() > 0, "{stats}");
     assert!(
         processing["p99_ns"].as_u64() >= processing["p50_ns"].as_u64(),
         "{stats}"
     );
-    assert_eq!(stats["daemon"]["pid"].as_u64(), Some(daemon.pid() as u64));
+    assert_eq!(
+        stats["daemon"]["pid"].as_u64(),
+        Some(one.daemon.pid() as u64)
+    );
     eprintln!("stats: {stats}");
 
     // Model metadata.
@@ -161,7 +162,7 @@ fn every_heading_arrives_on_zenoh_with_the_same_bytes_and_queryables_answer() {
         token.result().expect("ok").key_expr().as_str(),
         ipc.zenoh_presence_key(&zid)
     );
-    daemon.stop();
+    one.daemon.stop();
 }
 
 /// A source that delivers in bursts (publish many, notify once) is drained in one
@@ -175,12 +176,6 @@ fn bursts_arrive_on_zenoh_complete_and_in_order() {
         session: _session,
         one,
     } = ZenohSource::start("b0");
-    let OneSource {
-        ns: _ns,
-        daemon,
-        headings: ice,
-        gnss,
-    } = one;
 
     // Bursts of 1 to 120 samples (the buffers hold 128), valid and invalid mixed.
     let first = 1u64 << 32;
@@ -195,17 +190,22 @@ fn bursts_arrive_on_zenoh_complete_and_in_order() {
             } else {
                 (5.0, 0.01 * (s % 100) as f32)
             };
-            gnss.publish(VelocitySample::new(t0 + s, s, vn, ve, 0.0))
+            one.gnss
+                .publish(VelocitySample::new(t0 + s, s, vn, ve, 0.0))
                 .unwrap();
         }
-        gnss.notify().unwrap();
+        one.gnss.notify().unwrap();
         while seq < end {
-            let h = ice.recv_timeout(WATCHDOG).unwrap().unwrap_or_else(|| {
-                panic!(
-                    "watchdog: no iceoryx2 answer to {seq}; log:\n{}",
-                    daemon.log()
-                )
-            });
+            let h = one
+                .headings
+                .recv_timeout(WATCHDOG)
+                .unwrap()
+                .unwrap_or_else(|| {
+                    panic!(
+                        "watchdog: no iceoryx2 answer to {seq}; log:\n{}",
+                        one.daemon.log()
+                    )
+                });
             assert_eq!(h.seq, seq, "iceoryx2 answers in order");
             from_ice.push(h.to_le_bytes());
             seq += 1;
@@ -213,7 +213,7 @@ fn bursts_arrive_on_zenoh_complete_and_in_order() {
     }
     let mut from_zenoh = Vec::new();
     while from_zenoh.len() < from_ice.len() {
-        let h = next_zenoh(&zen, &daemon, from_zenoh.len(), from_ice.len());
+        let h = next_zenoh(&zen, &one.daemon, from_zenoh.len(), from_ice.len());
         assert_eq!(
             h.seq,
             first + from_zenoh.len() as u64,
@@ -228,7 +228,7 @@ fn bursts_arrive_on_zenoh_complete_and_in_order() {
             .is_none(),
         "no extra heading"
     );
-    daemon.stop();
+    one.daemon.stop();
 }
 
 /// Socket inodes of `pid`'s open file descriptors.
@@ -307,17 +307,14 @@ fn busy_zenoh_port_is_a_clear_start_up_error() {
 /// `--zenoh false`: no Zenoh session at all, iceoryx2 unaffected.
 #[test]
 fn zenoh_can_be_disabled() {
-    let OneSource {
-        ns: _ns,
-        daemon,
-        headings,
-        gnss,
-    } = OneSource::start("off", |b| b.listen(Listen::Off));
-    gnss.send(VelocitySample::new(1, 1, 1.0, 0.0, 0.0)).unwrap();
-    assert!(headings.recv_timeout(WATCHDOG).unwrap().is_some());
-    let pid = daemon.pid();
+    let one = OneSource::start("off", |b| b.listen(Listen::Off));
+    one.gnss
+        .send(VelocitySample::new(1, 1, 1.0, 0.0, 0.0))
+        .unwrap();
+    assert!(one.headings.recv_timeout(WATCHDOG).unwrap().is_some());
+    let pid = one.daemon.pid();
     let inodes = socket_inodes(pid);
     assert!(rows(pid, "tcp", &inodes).is_empty() && rows(pid, "tcp6", &inodes).is_empty());
-    let log = daemon.stop();
+    let log = one.daemon.stop();
     assert!(log.contains("zenoh output disabled"), "{log}");
 }

@@ -15,14 +15,14 @@ use std::time::Duration;
 
 use clap::Parser;
 use ghnet_client::VelocityPublisher;
-use ghnet_examples::{now_ns, pacing_node, wait_for_subscriber, CommonArgs, Interrupted};
+use ghnet_examples::{now_ns, pacing_node, wait_for_subscriber, Interrupted, SourceArgs};
 use ghnet_examples::{Pacer, Vehicle};
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    let ipc = args.common.ipc()?;
+    let ipc = args.source.ipc()?;
     let node = pacing_node(&ipc, "ghnet-example-publisher")?;
-    let gnss = VelocityPublisher::with_node(&node, &ipc, &args.source)?;
+    let gnss = VelocityPublisher::with_node(&node, &ipc, &args.source.name)?;
     let mut vehicle = Vehicle::new(args.seed, args.rate, args.duration.max(60.0));
 
     let patience = Duration::from_secs_f64(args.wait);
@@ -52,10 +52,7 @@ fn main() -> anyhow::Result<()> {
 #[derive(Parser)]
 struct Args {
     #[command(flatten)]
-    common: CommonArgs,
-    /// Source name (the `<source>` level of the service names).
-    #[arg(long, default_value = "gnss0")]
-    source: String,
+    source: SourceArgs,
     /// Samples per second.
     #[arg(long, default_value_t = 10.0)]
     rate: f64,

@@ -16,12 +16,12 @@ use std::time::Duration;
 
 use clap::Parser;
 use ghnet_client::{termination_requested, HeadingSubscriber, RecvError};
-use ghnet_examples::{latency_since, table, CommonArgs};
+use ghnet_examples::{latency_since, table, SourceArgs};
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    let ipc = args.common.ipc()?;
-    let headings = HeadingSubscriber::new(&ipc, &args.source)?;
+    let ipc = args.source.ipc()?;
+    let headings = HeadingSubscriber::new(&ipc, &args.source.name)?;
     println!("listening on {}", headings.service_name());
     println!("{}", table::header());
 
@@ -49,10 +49,7 @@ fn main() -> anyhow::Result<()> {
 #[derive(Parser)]
 struct Args {
     #[command(flatten)]
-    common: CommonArgs,
-    /// Source name (the `<source>` level of the service names).
-    #[arg(long, default_value = "gnss0")]
-    source: String,
+    source: SourceArgs,
     /// Stop after this many headings; 0 = until Ctrl-C.
     #[arg(long, default_value_t = 0)]
     count: u64,

@@ -16,13 +16,13 @@ use std::time::Duration;
 
 use clap::Parser;
 use ghnet_client::ZenohHeadingSubscriber;
-use ghnet_examples::{latency_since, table, CommonArgs, ZenohArgs};
+use ghnet_examples::{latency_since, table, SourceArgs, ZenohArgs};
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    let ipc = args.common.ipc()?;
+    let ipc = args.source.ipc()?;
     let session = args.zenoh.open()?;
-    let headings = ZenohHeadingSubscriber::new(&session, &ipc, &args.source)?;
+    let headings = ZenohHeadingSubscriber::new(&session, &ipc, &args.source.name)?;
     println!("listening on zenoh key {}", headings.key());
     println!("{}", table::header());
     let (mut received, mut bad) = (0u64, 0u64);
@@ -48,10 +48,7 @@ fn main() -> anyhow::Result<()> {
 #[derive(Parser)]
 struct Args {
     #[command(flatten)]
-    common: CommonArgs,
-    /// Source name (the `<source>` level of the service names).
-    #[arg(long, default_value = "gnss0")]
-    source: String,
+    source: SourceArgs,
     #[command(flatten)]
     zenoh: ZenohArgs,
     /// Stop after this many headings; 0 = until Ctrl-C.

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, ExitStatus, Output, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::OnceLock;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use ghnet_client::zenoh::query::ConsolidationMode;
 use ghnet_client::zenoh::{self, Wait};
@@ -430,17 +430,15 @@ impl Ghnetd {
         poll: Duration,
         mut cond: impl FnMut() -> bool,
     ) -> anyhow::Result<()> {
-        let t0 = Instant::now();
-        while !cond() {
-            self.check_running()?;
-            anyhow::ensure!(
-                t0.elapsed() < timeout,
-                "no {what} after {timeout:?}; {}",
-                self.log_tail(40)
-            );
-            std::thread::sleep(poll);
+        let mut exited = None;
+        let waited = crate::poll_until(what, timeout, poll, || {
+            exited = self.check_running().err();
+            exited.is_some() || cond()
+        });
+        match exited {
+            Some(e) => Err(e),
+            None => waited.map_err(|e| e.context(self.log_tail(40))),
         }
-        Ok(())
     }
 
     /// Polls `cond` until it holds, failing on the [`WATCHDOG`] or if the daemon exits.
@@ -493,6 +491,16 @@ impl Ghnetd {
     pub fn wait_serving(&self, publisher: &VelocityPublisher) {
         let what = format!("subscriber on {}", publisher.service_name());
         self.wait_until(&what, || publisher.subscriber_count() >= 1);
+    }
+
+    /// A publisher and a heading subscriber for `source` on the daemon's prefix, once
+    /// the daemon serves the publisher (static sources at once, discovered ones within
+    /// a discovery interval).
+    pub fn ends(&self, source: &str) -> (VelocityPublisher, HeadingSubscriber) {
+        let headings = HeadingSubscriber::new(&self.ipc, source).expect("heading subscriber");
+        let gnss = VelocityPublisher::new(&self.ipc, source).expect("velocity publisher");
+        self.wait_serving(&gnss);
+        (gnss, headings)
     }
 
     /// Waits until the log contains `needle` at least `count` times (for events that
@@ -668,9 +676,7 @@ impl OneSource {
         let ns = TestNamespace::new(source);
         let builder = Ghnetd::builder(&ns).source(source).discovery(false);
         let daemon = configure(builder).start();
-        let headings = HeadingSubscriber::new(daemon.ipc(), source).expect("heading subscriber");
-        let gnss = VelocityPublisher::new(daemon.ipc(), source).expect("velocity publisher");
-        daemon.wait_serving(&gnss);
+        let (gnss, headings) = daemon.ends(source);
         Self {
             gnss,
             headings,

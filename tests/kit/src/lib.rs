@@ -21,7 +21,8 @@
 //! - [`wait_until`], [`WATCHDOG`] — bounded waits: a hang becomes a failure, no
 //!   duration is ever asserted.
 //! - [`recv_answer`] — the next heading that answers a sample (skipping `Stale`);
-//!   [`zenoh_barrier`] — returns once a daemon knows a session's subscribers.
+//!   [`assert_silent`] — no extra heading; [`zenoh_barrier`] — returns once a daemon
+//!   knows a session's subscribers.
 //! - [`list_nodes`] — a namespace's iceoryx2 nodes, alive and dead.
 //! - [`test_model`] — the model the daemons run, loaded in-process for comparisons.
 //!
@@ -105,6 +106,17 @@ pub fn recv_answer(headings: &HeadingSubscriber, timeout: Duration) -> Option<He
             return Some(h);
         }
     }
+}
+
+/// Asserts that nothing more arrives on `headings` within `quiet` (after the answers a
+/// test expected: exactly one answer per sample, no late duplicate).
+pub fn assert_silent(headings: &HeadingSubscriber, quiet: Duration) {
+    let extra = headings.recv_timeout(quiet).expect("receive");
+    assert!(
+        extra.is_none(),
+        "{}: unexpected {extra:?}",
+        headings.service_name()
+    );
 }
 
 /// Returns once the daemon that `session` is connected to answers its model query.

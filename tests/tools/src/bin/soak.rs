@@ -162,13 +162,14 @@ fn print_verdict(report: &Report) {
     let interrupted = if report.interrupted {
         format!(
             " (interrupted: {} of {} samples per source)",
-            report.sent, report.planned
+            report.sent,
+            report.planned()
         )
     } else {
         String::new()
     };
     if failures.is_empty() {
-        let zenoh = if report.zenoh_checked {
+        let zenoh = if report.zenoh_checked() {
             " and Zenoh"
         } else {
             ""

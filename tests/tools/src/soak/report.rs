@@ -105,10 +105,11 @@ impl RssWindow {
 /// The result of a soak.
 #[derive(Debug, Clone)]
 pub struct Report {
+    /// What was run: sources, rate, duration, the memory limit and warm-up, and
+    /// whether Zenoh (`zenoh_connect`) and the memory (`daemon_pid`) were checked.
+    pub options: Options,
     /// Samples sent per source (fewer than planned when interrupted).
     pub sent: u64,
-    /// Samples planned per source.
-    pub planned: u64,
     /// Per source.
     pub sources: Vec<SourceReport>,
     /// `Stale` status messages seen (skipped: they answer no sample).
@@ -123,14 +124,6 @@ pub struct Report {
     pub latency_zenoh: Option<Percentiles>,
     /// ghnetd's memory (empty without a pid).
     pub rss: RssSeries,
-    /// Warm-up excluded from the memory verdict.
-    pub warmup: Duration,
-    /// Memory verdict threshold, kB.
-    pub rss_limit_kb: u64,
-    /// Whether the memory was sampled at all.
-    pub rss_checked: bool,
-    /// Whether Zenoh was checked.
-    pub zenoh_checked: bool,
     /// Ctrl-C / SIGTERM stopped publishing early.
     pub interrupted: bool,
 }
@@ -151,8 +144,8 @@ impl Report {
         let percentiles =
             |v: &[u32]| Percentiles::of(v.iter().map(|&us| u64::from(us) * 1000).collect());
         Self {
+            options: opts.clone(),
             sent: run.sent,
-            planned: opts.samples_per_source(),
             sources,
             stale: book.stale,
             foreign: book.foreign,
@@ -160,12 +153,23 @@ impl Report {
             latency_iceoryx2: percentiles(&book.latency_us[0]),
             latency_zenoh: percentiles(&book.latency_us[1]),
             rss: run.rss,
-            warmup: opts.effective_warmup(),
-            rss_limit_kb: opts.rss_limit_kb,
-            rss_checked: opts.daemon_pid.is_some(),
-            zenoh_checked,
             interrupted: run.interrupted,
         }
+    }
+
+    /// Samples planned per source.
+    pub fn planned(&self) -> u64 {
+        self.options.samples_per_source()
+    }
+
+    /// Whether Zenoh was checked.
+    pub fn zenoh_checked(&self) -> bool {
+        self.options.zenoh_connect.is_some()
+    }
+
+    /// Whether ghnetd's memory was sampled.
+    fn rss_checked(&self) -> bool {
+        self.options.daemon_pid.is_some()
     }
 
     /// Sum of one transport's tallies over all sources.
@@ -185,14 +189,14 @@ impl Report {
 
     /// Growth window after the warm-up.
     pub fn rss_window(&self) -> Option<RssWindow> {
-        self.rss.after_warmup(self.warmup)
+        self.rss.after_warmup(self.options.effective_warmup())
     }
 
     /// Everything that makes this run a failure; empty = pass.
     pub fn failures(&self) -> Vec<String> {
         let mut f = Vec::new();
         let mut transports = vec![(Transport::Iceoryx2, "iceoryx2")];
-        if self.zenoh_checked {
+        if self.zenoh_checked() {
             transports.push((Transport::Zenoh, "zenoh"));
         }
         for (t, name) in transports {
@@ -210,17 +214,17 @@ impl Report {
         if self.undecodable > 0 {
             f.push(format!("{} undecodable Zenoh payloads", self.undecodable));
         }
-        if self.rss_checked {
+        if self.rss_checked() {
             match self.rss_window() {
-                Some(w) if w.growth_kb() >= self.rss_limit_kb as i64 => f.push(format!(
+                Some(w) if w.growth_kb() >= self.options.rss_limit_kb as i64 => f.push(format!(
                     "ghnetd RSS grew {} kB after the warm-up (limit {} kB)",
                     w.growth_kb(),
-                    self.rss_limit_kb
+                    self.options.rss_limit_kb
                 )),
                 Some(_) => {}
                 None => f.push(format!(
                     "ghnetd RSS not judged: fewer than 2 samples after the {:?} warm-up (run longer)",
-                    self.warmup
+                    self.options.effective_warmup()
                 )),
             }
         }
@@ -253,7 +257,7 @@ impl fmt::Display for Report {
             n * self.sent - t.lost
         )?;
         writeln!(f, "  latency {}", latency(&self.latency_iceoryx2))?;
-        if self.zenoh_checked {
+        if self.zenoh_checked() {
             let t = self.total(Transport::Zenoh);
             writeln!(f, "zenoh:    answered {}  {t}", n * self.sent - t.lost)?;
             writeln!(f, "  latency {}", latency(&self.latency_zenoh))?;
@@ -269,13 +273,13 @@ impl fmt::Display for Report {
             "stale status messages (skipped): {}  foreign Zenoh headings (ignored): {}",
             self.stale, self.foreign
         )?;
-        if self.rss_checked {
+        if self.rss_checked() {
             match self.rss_window() {
                 Some(w) => writeln!(
                     f,
                     "ghnetd RSS after the {:.0?} warm-up ({} samples): first {} kB  last {} kB  \
                      growth {:+} kB  min {} kB  max {} kB  range {} kB  (limit: growth < {} kB)",
-                    self.warmup,
+                    self.options.effective_warmup(),
                     w.count,
                     w.first,
                     w.last,
@@ -283,7 +287,7 @@ impl fmt::Display for Report {
                     w.min,
                     w.max,
                     w.range_kb(),
-                    self.rss_limit_kb
+                    self.options.rss_limit_kb
                 )?,
                 None => writeln!(f, "ghnetd RSS: too few samples after the warm-up")?,
             }

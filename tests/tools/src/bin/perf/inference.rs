@@ -9,7 +9,7 @@ use anyhow::Context;
 use ghnet_models::{Model, Predictor};
 use ghnet_tools::Percentiles;
 
-use crate::{row, us, Row};
+use crate::{info, us, Row};
 
 /// Per-call time of the model alone.
 pub struct Inference {
@@ -88,19 +88,15 @@ impl Inference {
             .map(|(_, d)| us(*d))
             .collect();
         vec![
-            row(
+            info(
                 "model alone: `Predictor::predict_with_accuracy`, p50 (mean)",
                 "–".into(),
                 format!("{} ({})", us(self.p50), us(self.mean)),
-                "–".into(),
-                None,
             ),
-            row(
+            info(
                 "model alone: `predict_batch_with_accuracy` per sample, batch 4 / 16 / 128 (p50)",
                 "–".into(),
                 batch.join(" / "),
-                "–".into(),
-                None,
             ),
         ]
     }

@@ -176,6 +176,11 @@ fn row(metric: &str, raw: String, ghnetd: String, target: String, pass: Option<b
     }
 }
 
+/// A row that only informs: no target, no verdict.
+fn info(metric: &str, raw: String, ghnetd: String) -> Row {
+    row(metric, raw, ghnetd, "–".into(), None)
+}
+
 fn us(d: Duration) -> String {
     format!("{:.1} µs", d.as_nanos() as f64 / 1000.0)
 }

@@ -22,7 +22,7 @@ use ghnet_client::{decode_zenoh, HeadingStatus, HeadingSubscriber, VelocityPubli
 
 use crate::latency::moving_sample;
 use crate::target::{cpu_time, Env, Kind, Rss, Spec, Target};
-use crate::{row, Args, Row};
+use crate::{info, row, Args, Row};
 
 /// How the publishers wake the target.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -477,12 +477,10 @@ fn rate_rows(args: &Args, tr: &ThroughputRun, td: &ThroughputRun) -> Vec<Row> {
             "0 / 0 / 0 \\| 0 / 0 / 0".into(),
             Some(td.iceoryx2.none() && td.zenoh.none()),
         ),
-        row(
+        info(
             "throughput: CPU of target / of the driving perf process (cores)",
             format!("{:.2} / {:.2}", tr.target_cores, tr.driver_cores),
             format!("{:.2} / {:.2}", td.target_cores, td.driver_cores),
-            "–".into(),
-            None,
         ),
     ]
 }
@@ -503,19 +501,15 @@ fn memory_rows(args: &Args, tr: &ThroughputRun, td: &ThroughputRun) -> Vec<Row> 
             "< 64 MB".into(),
             Some((td.rss_connected.total_kib as f64) * 1024.0 < 64e6),
         ),
-        row(
+        info(
             "  anonymous / iceoryx2 shared memory of it",
             parts(&tr.rss_connected),
             parts(&td.rss_connected),
-            "–".into(),
-            None,
         ),
-        row(
+        info(
             "VmRSS after the throughput load (anonymous / shared memory)",
             after(&tr.rss_after_load),
             after(&td.rss_after_load),
-            "–".into(),
-            None,
         ),
     ]
 }
