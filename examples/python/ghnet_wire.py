@@ -6,12 +6,39 @@ length prefixes: one `struct.unpack`.
 """
 
 import ctypes
+import json
 import struct
 
 # iceoryx2 service settings every party must use (client/src/settings.rs): settings of
 # an existing service are minimums, so a client creating the service with smaller
 # limits would make ghnetd's open fail.
 MAX_PUBLISHERS, MAX_SUBSCRIBERS, MAX_NODES, SUBSCRIBER_BUFFER = 4, 8, 16, 128
+
+
+def open_services(iox2, node, name: str, payload):
+    """Opens (or creates) the publish-subscribe service `name` for `payload` and its
+    paired event service, both with ghnet's settings. Returns (pubsub, event)."""
+    service_name = iox2.ServiceName.new(name)
+    pubsub = (node.service_builder(service_name).publish_subscribe(payload)
+              .max_publishers(MAX_PUBLISHERS).max_subscribers(MAX_SUBSCRIBERS)
+              .max_nodes(MAX_NODES).subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+              .history_size(0).enable_safe_overflow(True).open_or_create())
+    event = (node.service_builder(service_name).event().max_notifiers(MAX_PUBLISHERS)
+             .max_listeners(MAX_SUBSCRIBERS).max_nodes(MAX_NODES).open_or_create())
+    return pubsub, event
+
+
+def loopback_config(zenoh, connect: str):
+    """A Zenoh config like ghnet's `peer_config`: a peer that connects to `connect`
+    (ghnetd's zenoh.listen), listens nowhere, no multicast scouting, no gossip. Zenoh's
+    defaults would listen on every interface and announce themselves by multicast."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("connect/endpoints", json.dumps([connect]))
+    conf.insert_json5("listen/endpoints", "[]")
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("scouting/gossip/enabled", "false")
+    return conf
 
 
 class VelocitySample(ctypes.Structure):

@@ -17,8 +17,7 @@ import time
 
 import iceoryx2 as iox2
 
-from ghnet_wire import (MAX_NODES, MAX_PUBLISHERS, MAX_SUBSCRIBERS,
-                        SUBSCRIBER_BUFFER, VelocitySample)
+from ghnet_wire import VelocitySample, open_services
 
 
 def main() -> None:
@@ -40,13 +39,9 @@ def main() -> None:
         config.global_cfg.root_path = iox2.Path.new(root)
     node = iox2.NodeBuilder.new().config(config).create(iox2.ServiceType.Ipc)
 
-    name = iox2.ServiceName.new(f"{args.prefix}/{args.source}/velocity")
-    service = (node.service_builder(name).publish_subscribe(VelocitySample)
-               .max_publishers(MAX_PUBLISHERS).max_subscribers(MAX_SUBSCRIBERS)
-               .max_nodes(MAX_NODES).subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
-               .history_size(0).enable_safe_overflow(True).open_or_create())
-    event = (node.service_builder(name).event().max_notifiers(MAX_PUBLISHERS)
-             .max_listeners(MAX_SUBSCRIBERS).max_nodes(MAX_NODES).open_or_create())
+    # ghnet's service settings: another party opening with other limits would fail.
+    service, event = open_services(iox2, node, f"{args.prefix}/{args.source}/velocity",
+                                   VelocitySample)
     publisher = service.publisher_builder().create()
     notifier = event.notifier_builder().create()
 

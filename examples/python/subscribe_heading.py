@@ -17,7 +17,7 @@ import time
 
 import zenoh
 
-from ghnet_wire import STATUS, decode_heading
+from ghnet_wire import STATUS, decode_heading, loopback_config
 
 
 def main() -> None:
@@ -31,12 +31,7 @@ def main() -> None:
     args = p.parse_args()
 
     # Loopback only: connect to ghnetd, listen nowhere, no multicast or gossip.
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"peer"')
-    conf.insert_json5("connect/endpoints", json.dumps([args.connect]))
-    conf.insert_json5("listen/endpoints", "[]")
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("scouting/gossip/enabled", "false")
+    conf = loopback_config(zenoh, args.connect)
 
     headings: "queue.Queue[bytes]" = queue.Queue()
     key = f"{args.prefix}/{args.source}/heading"

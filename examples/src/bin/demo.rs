@@ -1,14 +1,11 @@
-//! `demo`: the one command that shows headings flowing — ghnetd on the embedded
-//! default model, a simulated vehicle and a live table of headings, in one process.
+//! `demo`: ghnetd on the embedded default model, a simulated vehicle and a live table
+//! of headings, in one process. The daemon is a library (`ghnetd::run(config,
+//! shutdown)` on a thread); source, daemon and consumer are ports on two services.
 //!
 //! ```text
 //! cargo run --release -p ghnet-examples --bin demo                 # 10 s, system namespace
 //! cargo run --release -p ghnet-examples --bin demo -- --isolated   # private namespace
 //! ```
-//!
-//! The daemon is a library: `ghnetd::run(config, shutdown)` on a thread of its own,
-//! stopped with a `ShutdownFlag`. Source, daemon and consumer are just ports on the
-//! same two services. The table is `ghnet_examples::table`: one column per quantity.
 
 use std::time::Duration;
 
@@ -18,7 +15,6 @@ use ghnet_examples::{log_to_stderr, now_ns, pacing_node, wait_for_subscriber};
 use ghnet_examples::{table, Pacer, TablePrinter, Vehicle};
 
 const SOURCE: &str = "demo";
-
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     log_to_stderr(); // the daemon's log lines; the table goes to stdout
@@ -79,8 +75,8 @@ struct Args {
     /// Samples per second.
     #[arg(long, default_value_t = 10.0)]
     rate: f64,
-    /// Simulation seed: the trajectory and the receiver. 10: a good receiver pulling
-    /// away from a stop (`LowSpeed` turning `Ok`); 1: a poor one creeping at 0.5 m/s.
+    /// Simulation seed: 10, a good receiver pulling away (`LowSpeed` turning `Ok`); 1, a
+    /// poor one creeping at 0.5 m/s.
     #[arg(long, default_value_t = 10)]
     seed: u64,
     /// Private iceoryx2 namespace (removed at exit) instead of the system one.
