@@ -2,6 +2,18 @@
 //! and real Zenoh, each test in its own namespace with its own Zenoh endpoint, on the
 //! test kit (`ghnet_testkit`). One binary, one module per topic.
 //!
+//! # Layout
+//!
+//! - `echo` — answers equal the in-process model, exactly once, in order; `invalid`,
+//!   `bad_input` — every row of the bad-input table; `config` — start-up errors.
+//! - `discovery` — sources that appear at run time, sources that never cross.
+//! - `crash`, `faults`, `shutdown` — `kill -9` of the daemon, a publisher or a
+//!   subscriber; stuck subscribers, silent sources, a second daemon, full services,
+//!   permissions; SIGTERM.
+//! - `zenoh_output`, `zenoh_acl`, `netns`, `python` — the Zenoh output, its access
+//!   control, another network namespace, the Python clients.
+//! - `soak` — 100 sources × 10 Hz × 60 s through `ghnet_tools::soak`.
+//!
 //! The kit finds `ghnetd` and its own bins next to this executable: `cargo test
 //! --workspace` builds them; for this crate alone, `cargo build -p ghnetd -p
 //! ghnet-testkit` first. Tests that need root and `ip`, or Python with the ghnet
