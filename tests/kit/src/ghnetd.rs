@@ -598,7 +598,10 @@ impl Ghnetd {
             found.is_some()
         });
         if let Err(e) = result {
-            panic!("watchdog: {e:#}\nlast stats: {}", self.stats());
+            let last = self
+                .try_stats()
+                .map_or_else(|e| format!("{e:#}"), |s| s.to_string());
+            panic!("watchdog: {e:#}\nlast stats: {last}");
         }
         found.expect("found")
     }
