@@ -90,8 +90,13 @@ impl NmeaDecoder {
     /// [`Skip::Truncated`], and so is a VTG still waiting for its time.
     pub fn finish(&mut self) {
         self.lines.finish(&mut self.stats);
-        if self.cycle.pending_vtg.take().is_some() {
-            self.stats.note(Skip::Truncated);
+        if let Some(vtg) = self.cycle.pending_vtg.take() {
+            let redundant = vtg.rmc_before || self.cycle.rmc_since_vtg;
+            self.stats.note(if redundant {
+                Skip::Redundant
+            } else {
+                Skip::Truncated
+            });
         }
     }
 
@@ -271,6 +276,11 @@ impl Cycle {
                 _ => {}
             }
             self.last_tod = Some(t);
+        }
+        // Only a time (or an RMC, which makes VTG redundant) settles a waiting VTG:
+        // receivers without a fix send GGA with an empty time before their RMC.
+        if s.tod.is_none() && !s.is_rmc {
+            return;
         }
         let Some(vtg) = self.pending_vtg.take() else {
             return;

@@ -345,17 +345,44 @@ impl NavPvt {
 /// Resynchronises after garbage, bad checksums and truncated frames by searching
 /// for the next sync pair right after the rejected frame's sync bytes; counts
 /// everything in [`Stats`]. Never panics on any input (fuzzed).
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct UbxDecoder {
     /// Bytes of an unfinished frame carried over to the next push.
     pending: Vec<u8>,
+    comments: Comments,
     stats: Stats,
+}
+
+/// `#` comment lines before the first frame (gpsd's captures start with a header
+/// of them) are counted as [`Skip::Comment`] rather than garbage.
+#[derive(Debug, Clone, Copy)]
+struct Comments {
+    /// No frame accepted yet: comment lines are still expected.
+    allowed: bool,
+    /// The previous byte ended a line (or the stream just started).
+    line_start: bool,
+}
+
+/// A comment line longer than this is garbage (binary noise that began with `#`).
+const MAX_COMMENT: usize = 4096;
+
+impl Default for UbxDecoder {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 impl UbxDecoder {
     /// A decoder at the start of a stream.
     pub fn new() -> Self {
-        Self::default()
+        UbxDecoder {
+            pending: Vec::new(),
+            comments: Comments {
+                allowed: true,
+                line_start: true,
+            },
+            stats: Stats::default(),
+        }
     }
 
     /// Decodes `bytes`, appending an epoch to `out` for every NAV-PVT completed.
@@ -363,11 +390,11 @@ impl UbxDecoder {
         self.stats.add_input(bytes.len());
         if self.pending.is_empty() {
             // Common case: whole frames in the chunk, nothing copied.
-            let used = scan(bytes, &mut self.stats, out);
+            let used = scan(bytes, &mut self.comments, &mut self.stats, out);
             self.pending.extend_from_slice(&bytes[used..]);
         } else {
             self.pending.extend_from_slice(bytes);
-            let used = scan(&self.pending, &mut self.stats, out);
+            let used = scan(&self.pending, &mut self.comments, &mut self.stats, out);
             self.pending.drain(..used);
         }
     }
@@ -401,17 +428,15 @@ fn finish_pending(pending: &mut Vec<u8>, stats: &mut Stats) {
 
 /// Decodes every complete frame in `data`; returns how many leading bytes are done
 /// with (the rest is an unfinished frame to keep).
-fn scan(data: &[u8], stats: &mut Stats, out: &mut Vec<Epoch>) -> usize {
+fn scan(data: &[u8], comments: &mut Comments, stats: &mut Stats, out: &mut Vec<Epoch>) -> usize {
     let mut i = 0;
     while i < data.len() {
         let rest = &data[i..];
         if rest[0] != SYNC[0] {
-            let run = rest
-                .iter()
-                .position(|&b| b == SYNC[0])
-                .unwrap_or(rest.len());
-            stats.skip(Skip::Garbage, run);
-            i += run;
+            match skip_noise(rest, comments, stats) {
+                Some(n) => i += n,
+                None => return i, // a comment line not yet complete
+            }
             continue;
         }
         match frame_at(rest) {
@@ -426,12 +451,38 @@ fn scan(data: &[u8], stats: &mut Stats, out: &mut Vec<Epoch>) -> usize {
                 i += SYNC.len();
             }
             Frame::Complete { class, id, len } => {
+                comments.allowed = false;
                 handle(class, id, &rest[HEADER_LEN..HEADER_LEN + len], stats, out);
                 i += len + OVERHEAD;
             }
         }
     }
     i
+}
+
+/// Skips what precedes the next sync byte: a whole comment line, or a run of
+/// garbage (up to a line end while comments are still expected). Returns the bytes
+/// skipped, `None` when a comment line has not ended yet.
+fn skip_noise(rest: &[u8], comments: &mut Comments, stats: &mut Stats) -> Option<usize> {
+    if comments.allowed && comments.line_start && rest[0] == b'#' {
+        match rest.iter().position(|&b| b == b'\n') {
+            Some(nl) => {
+                stats.skip(Skip::Comment, nl + 1);
+                return Some(nl + 1);
+            }
+            None if rest.len() < MAX_COMMENT => return None,
+            None => {}
+        }
+    }
+    let ends_run = |b: &u8| *b == SYNC[0] || (comments.allowed && *b == b'\n');
+    let run = match rest.iter().position(ends_run) {
+        Some(p) if rest[p] == b'\n' => p + 1,
+        Some(p) => p,
+        None => rest.len(),
+    };
+    comments.line_start = rest[run - 1] == b'\n';
+    stats.skip(Skip::Garbage, run);
+    Some(run)
 }
 
 /// What starts at a sync byte.
