@@ -4,10 +4,11 @@
 //! Why a hand parser and not the `nmea` crate (0.8.0, Apache-2.0, released
 //! 2026-08-08 after 22 months without one): its VTG parser drops the km/h speed and
 //! the mode indicator, and it rejects a whole sentence over a field ghnet does not
-//! read. Run over the 9,193 RMC/GGA/VTG sentences of gpsd's 116 NMEA test captures
-//! it refused 67 sentences with good checksums, among them all 25 RMC of a Motorola
-//! T805 (magnetic variation without E/W), including its moving epochs, and GGA
-//! without a checksum (legal NMEA, HP 58534A). ghnet needs six fields of six
+//! read. Over the 9,193 RMC/GGA/VTG sentences of the 118 gpsd test captures (gpsd
+//! 46977faa) that have them, it rejected 67 that had not failed their checksum:
+//! besides truncated lines, all 25 RMC of a Motorola T805 (magnetic variation
+//! without E/W; moving epochs among them), GGA without a checksum (legal NMEA, HP
+//! 58534A) and GGA with an empty fix quality. ghnet needs a few fields of six
 //! sentence types; reading them is shorter than working around those rejections.
 //!
 //! # Epochs
