@@ -107,8 +107,8 @@ pub struct Summary {
     pub published: u64,
     /// Of those, flagged `INVALID`.
     pub invalid: u64,
-    /// Answers from ghnetd received, when the run listened for them (replays).
-    pub answered: Option<u64>,
+    /// ghnetd's answers by status, when the run listened for them (replays).
+    pub answered: Option<sink::Answers>,
     /// Connections lost and retried.
     pub reconnects: u64,
     /// Epochs whose receiver time went backwards and were held at the last
@@ -127,7 +127,7 @@ impl fmt::Display for Summary {
             self.source, self.published, self.invalid
         )?;
         if let Some(a) = self.answered {
-            write!(f, ", answered {a}")?;
+            write!(f, ", {a}")?;
         }
         write!(
             f,

@@ -57,8 +57,58 @@ impl Sink {
 pub struct Publisher {
     velocity: VelocityPublisher,
     answers: Option<HeadingSubscriber>,
-    answered: u64,
+    tally: Answers,
     last_answered: Option<u64>,
+}
+
+/// ghnetd's answers received during a replay, by status.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Answers {
+    /// `Ok`: a heading to use.
+    pub ok: u64,
+    /// `LowSpeed`: moving, heading uncertain.
+    pub low_speed: u64,
+    /// `Stationary`: heading not observable.
+    pub stationary: u64,
+    /// `InvalidInput`: rejected (e.g. the receiver's `INVALID` flag).
+    pub invalid: u64,
+    /// Any status this bridge does not know (a newer ghnetd).
+    pub other: u64,
+}
+
+impl Answers {
+    /// All answers.
+    pub fn total(&self) -> u64 {
+        self.ok + self.low_speed + self.stationary + self.invalid + self.other
+    }
+
+    fn count(&mut self, status: Option<HeadingStatus>) {
+        match status {
+            Some(HeadingStatus::Ok) => self.ok += 1,
+            Some(HeadingStatus::LowSpeed) => self.low_speed += 1,
+            Some(HeadingStatus::Stationary) => self.stationary += 1,
+            Some(HeadingStatus::InvalidInput) => self.invalid += 1,
+            _ => self.other += 1,
+        }
+    }
+}
+
+impl std::fmt::Display for Answers {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "answered {} (ok {}, low_speed {}, stationary {}, invalid {}",
+            self.total(),
+            self.ok,
+            self.low_speed,
+            self.stationary,
+            self.invalid
+        )?;
+        if self.other > 0 {
+            write!(f, ", other {}", self.other)?;
+        }
+        f.write_str(")")
+    }
 }
 
 impl Publisher {
@@ -74,7 +124,7 @@ impl Publisher {
         Ok(Publisher {
             velocity,
             answers,
-            answered: 0,
+            tally: Answers::default(),
             last_answered: None,
         })
     }
@@ -90,9 +140,9 @@ impl Publisher {
         Ok(())
     }
 
-    /// Answers received (when listening for them).
-    pub fn answered(&self) -> Option<u64> {
-        self.answers.as_ref().map(|_| self.answered)
+    /// Answers received by status (when listening for them).
+    pub fn answered(&self) -> Option<Answers> {
+        self.answers.as_ref().map(|_| self.tally)
     }
 
     /// Counts the answers already there, waiting up to `wait` for the first.
@@ -107,8 +157,9 @@ impl Publisher {
         };
         while let Some(h) = next.context("receiving answers")? {
             // `Stale` is ghnetd saying the source went quiet, not an answer.
-            if h.heading_status() != Some(HeadingStatus::Stale) {
-                self.answered += 1;
+            let status = h.heading_status();
+            if status != Some(HeadingStatus::Stale) {
+                self.tally.count(status);
                 self.last_answered = Some(h.seq);
             }
             next = answers.try_recv();
