@@ -183,9 +183,10 @@ fn replay_at_speed_zero_waits_for_each_answer() {
     assert!((first.speed_accuracy - 0.229).abs() < 1e-6 && (first.v_down - 0.038).abs() < 1e-6);
 }
 
-/// A pseudo-terminal plays a u-blox as a serial device behind a by-id style
-/// symlink; the device disappears (master closed, link removed) and returns as a
-/// new pseudo-terminal: the bridge reopens it and numbering and time go on.
+/// A pseudo-terminal plays real u-blox logs as a serial device behind a by-id style
+/// symlink: the NEO-M8N capture, then the device disappears (master closed, link
+/// removed) and returns as a new pseudo-terminal playing the ZED-F9P capture. The
+/// bridge reopens it; numbering and time go on.
 #[test]
 fn serial_device_that_disappears_and_returns_is_reopened() {
     let ns = TestNamespace::new("gnss_pty");
@@ -200,8 +201,8 @@ fn serial_device_that_disappears_and_returns_is_reopened() {
     let (stop, bridge) = spawn_bridge(live_config("pty", input, &ns));
     let mut got = Vec::new();
     pty.wait_opened_raw();
-    pty.write(&ubx_frames(1_700_000_000_000_000_000, 5));
-    receive(&sub, 5, &mut got);
+    pty.write(&std::fs::read(data_path("ublox-neo-m8n.log")).unwrap());
+    receive(&sub, 24, &mut got);
 
     drop(pty); // unplugged
     std::fs::remove_file(&link).unwrap();
@@ -209,19 +210,16 @@ fn serial_device_that_disappears_and_returns_is_reopened() {
     let pty = Pty::open();
     std::os::unix::fs::symlink(&pty.slave_path, &link).unwrap();
     pty.wait_opened_raw();
-    pty.write(&ubx_frames(1_700_000_001_000_000_000, 5));
-    receive(&sub, 5, &mut got);
+    pty.write(&std::fs::read(data_path("ublox-zed-f9p-hp.log")).unwrap());
+    receive(&sub, 29, &mut got);
 
     let summary = stop_bridge(stop, bridge);
     assert_monotonic(&got);
-    assert_eq!(summary.published, 10, "{summary}");
+    assert_eq!(summary.published, 24 + 29, "{summary}");
     assert!(summary.reconnects >= 1, "{summary}");
     assert_eq!(summary.format, Some(Format::Ubx));
-    assert_eq!(
-        got[9].flags & flags::SIMULATED,
-        0,
-        "live data is not a replay"
-    );
+    assert!(got.iter().all(|s| s.flags == 0), "live, valid, with v_down");
+    assert!((got[0].speed_accuracy - 0.229).abs() < 1e-6, "{:?}", got[0]);
     drop(pty);
     let _ = std::fs::remove_dir_all(dir);
 }
