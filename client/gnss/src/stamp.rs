@@ -13,8 +13,9 @@ use ghnet_receivers::Epoch;
 /// The timestamp is the receiver's time when it has one. A receiver time behind the
 /// last timestamp (captures joined together, a receiver reset) is held at the last
 /// timestamp and counted in [`held_back`](Self::held_back). An epoch without a time
-/// gets the last timestamp; before any, the host clock (`CLOCK_REALTIME`) for a
-/// live receiver, 0 for a replayed file (whose clock is the receiver's, not ours).
+/// (no fix yet, or NMEA without any date) gets the host clock (`CLOCK_REALTIME`,
+/// never below the last timestamp) from a live receiver, and the last timestamp (0
+/// before any) in a replayed file, whose clock is the receiver's, not ours.
 #[derive(Debug)]
 pub struct Stamper {
     next_seq: u64,
@@ -42,9 +43,8 @@ impl Stamper {
                 last
             }
             (Some(t), _) => t,
-            (None, Some(last)) => last,
-            (None, None) if self.live => host_now_ns(),
-            (None, None) => 0,
+            (None, last) if self.live => host_now_ns().max(last.unwrap_or(0)),
+            (None, last) => last.unwrap_or(0),
         };
         self.last_ts = Some(ts);
         let seq = self.next_seq;
@@ -106,7 +106,13 @@ mod tests {
         assert_eq!(s.next(Some(200)), (4, 200));
         assert_eq!((s.count(), s.held_back()), (5, 1));
         let mut live = Stamper::new(true);
-        assert!(live.next(None).1 > 1_700_000_000_000_000_000);
+        let (_, first) = live.next(None);
+        assert!(first > 1_700_000_000_000_000_000);
+        assert!(
+            live.next(None).1 >= first,
+            "a live receiver without time follows the host clock"
+        );
+        assert_eq!(live.next(Some(5)), (2, live.last_ts.unwrap()), "held back");
     }
 
     #[test]
