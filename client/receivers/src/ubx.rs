@@ -12,6 +12,34 @@
 //!
 //! Frame: `B5 62 class id len(u16 LE) payload[len] ck_a ck_b`, checksum over
 //! `class..payload`.
+//!
+//! A simulator writes a UBX log from its epochs with [`NavPvt::from_epoch`] and
+//! [`NavPvt::write_frame`]; reading it back gives the same epochs up to the
+//! receiver's quantization (1 mm/s, 1e-5°):
+//!
+//! ```
+//! use ghnet_receivers::{decode, ubx::NavPvt, Epoch, Format};
+//! let epoch = Epoch {
+//!     time_ns: Some(1_764_151_200_000_000_000), // 2025-11-26 10:00:00 UTC
+//!     v_north: 3.0,
+//!     v_east: 4.0,
+//!     v_down: Some(-0.1),
+//!     speed_accuracy: 0.2,
+//!     valid: true,
+//!     course_deg: f32::NAN, // NaN: the direction of the velocity, as a u-blox reports
+//!     course_accuracy_deg: f32::NAN,
+//! };
+//! let mut log = Vec::new();
+//! for i in 0..10 {
+//!     let t = epoch.time_ns.map(|t| t + i * 100_000_000); // 10 Hz
+//!     NavPvt::from_epoch(&Epoch { time_ns: t, ..epoch }).write_frame(&mut log);
+//! }
+//! assert_eq!(log.len(), 10 * 100);
+//! let back = decode(&log, None);
+//! assert_eq!((back.format, back.epochs.len()), (Some(Format::Ubx), 10));
+//! assert!((back.epochs[0].course_deg - 53.130_102).abs() < 1e-4);
+//! assert_eq!(back.epochs[9].time_ns, Some(1_764_151_200_900_000_000));
+//! ```
 
 use crate::epoch::wrap_deg;
 use crate::stats::{Skip, Stats};
