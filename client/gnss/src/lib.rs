@@ -253,6 +253,12 @@ impl Bridge<'_> {
                 }
             }
         }
+        if !self.epochs.is_empty() {
+            // Rows reach a pipe (`| tee`, a test) as they are decoded, not per 8 KiB.
+            if let Sink::Print(out) = sink {
+                std::io::Write::flush(out).context("writing to stdout")?;
+            }
+        }
         self.epochs.clear();
         Ok(())
     }

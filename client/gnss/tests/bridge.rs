@@ -403,3 +403,44 @@ impl Pty {
         (&self.master).write_all(bytes).unwrap();
     }
 }
+
+/// SIGTERM (systemd's stop) ends a live run cleanly: exit status 0, the samples so
+/// far printed, the summary logged.
+#[test]
+fn sigterm_stops_a_live_run_cleanly() {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_ghnet-gnss"))
+        .args(["--source", "term", "--print", &format!("tcp://{addr}")])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn ghnet-gnss");
+    let (mut conn, _) = accept(&listener);
+    conn.write_all(&std::fs::read(data_path("nl2008u.log")).unwrap())
+        .unwrap();
+    // The peer stays connected: only the signal can end this run. A thread reads
+    // stdout so the watchdog, not a blocking read, bounds the wait.
+    let stdout = child.stdout.take().unwrap();
+    let (rows_tx, rows) = std::sync::mpsc::channel();
+    thread::spawn(move || {
+        use std::io::BufRead;
+        for line in std::io::BufReader::new(stdout).lines() {
+            let _ = rows_tx.send(line.unwrap());
+        }
+    });
+    for i in 0..10 {
+        rows.recv_timeout(WATCHDOG)
+            .unwrap_or_else(|_| panic!("watchdog: row {i}"));
+    }
+    // SAFETY: kill(2) on the pid of a child we spawned and have not reaped.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("stop requested") && stderr.contains("published 9 samples"),
+        "{stderr}"
+    );
+    drop(conn);
+}
