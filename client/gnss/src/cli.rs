@@ -14,7 +14,7 @@ use crate::{Backoff, Config, Input, Output};
 ///
 /// INPUT is a recorded log (replayed), a serial device (/dev/ttyACM0, /dev/ttyUSB0,
 /// /dev/serial/by-id/...), tcp://HOST:PORT (a raw UBX or NMEA stream) or
-/// gpsd://HOST[:PORT] (gpsd's JSON). The protocol (u-blox UBX NAV-PVT, NMEA 0183
+/// gpsd://HOST:PORT (gpsd's JSON; the port defaults to 2947). The protocol (u-blox UBX NAV-PVT, NMEA 0183
 /// RMC/VTG, gpsd TPV) is detected unless --format says it. Live inputs that go away
 /// are reopened with backoff. Stop with Ctrl-C (SIGINT) or SIGTERM; a summary line
 /// (samples published, input skipped by reason) is logged at the end.
@@ -26,7 +26,7 @@ pub struct Args {
     #[arg(long)]
     pub source: String,
 
-    /// The receiver: a file, a serial device, tcp://HOST:PORT or gpsd://HOST[:PORT].
+    /// The receiver: a file, a serial device, tcp://HOST:PORT or gpsd://HOST:PORT.
     pub input: String,
 
     /// Protocol of the input; detected from the first epoch when not given.

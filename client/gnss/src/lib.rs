@@ -7,12 +7,12 @@
 //! - [`cli`] — [`Args`](cli::Args), the command line (its doc comments are
 //!   `--help`), turned into a [`Config`].
 //! - [`input`] — [`Input`] (file, serial, `tcp://`, `gpsd://`) and
-//!   [`Connection`](input::Connection): short-timeout reads, reconnection with
+//!   [`Connection`]: short-timeout reads, reconnection with
 //!   backoff, logged and counted.
-//! - [`stamp`] — [`Stamper`](stamp::Stamper): sequence numbers and timestamps that
-//!   never go backwards; [`to_sample`](stamp::to_sample), the epoch → wire mapping.
-//! - [`pace`] — [`Pacer`](pace::Pacer): replay at the recorded pace or faster.
-//! - [`sink`] — [`Sink`](sink::Sink): publish to ghnetd (waiting for its answers
+//! - [`stamp`] — [`Stamper`]: sequence numbers and timestamps that
+//!   never go backwards; [`to_sample`], the epoch → wire mapping.
+//! - [`pace`] — [`Pacer`]: replay at the recorded pace or faster.
+//! - [`sink`] — [`Sink`]: publish to ghnetd (waiting for its answers
 //!   where a replay needs them) or print CSV.
 //! - this file — [`run`], the loop: read → decode → stamp → pace → send; and
 //!   [`Summary`], the counters of a run.
