@@ -153,7 +153,7 @@ pub fn run(config: &Config, stop: &dyn Fn() -> bool) -> anyhow::Result<Summary> 
     }
     let mut bridge = Bridge {
         config,
-        decoder: Decoder::with_speed_accuracy(config.format, config.speed_accuracy),
+        decoder: Decoder::with_speed_accuracy(format_of(config), config.speed_accuracy),
         stamper: Stamper::new(!replay),
         pacer: Pacer::new(if replay { config.replay_speed } else { 0.0 }),
         epochs: Vec::with_capacity(64),
@@ -178,6 +178,15 @@ pub fn run(config: &Config, stop: &dyn Fn() -> bool) -> anyhow::Result<Summary> 
     };
     tracing::info!("{summary}");
     Ok(summary)
+}
+
+/// The format to decode: as configured, gpsd's for a `gpsd://` input, else detected.
+fn format_of(config: &Config) -> Option<Format> {
+    match (&config.format, &config.input) {
+        (Some(f), _) => Some(*f),
+        (None, Input::Gpsd(_)) => Some(Format::Gpsd),
+        (None, _) => None,
+    }
 }
 
 fn open_sink(config: &Config, replay: bool) -> anyhow::Result<Sink> {
