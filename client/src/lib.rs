@@ -77,7 +77,7 @@ pub mod wire;
 pub use codec::{decode_zenoh, encode_zenoh, DecodeError, ZENOH_HEADING_LEN};
 pub use endpoint::{
     HeadingPublisher, HeadingSubscriber, OpenError, Receiver, RecvError, SendError, Sender,
-    VelocityPublisher, VelocitySubscriber,
+    SettingMismatch, VelocityPublisher, VelocitySubscriber,
 };
 pub use names::{
     validate_source_name, IpcConfig, NameError, DEFAULT_PREFIX, EXPIRED_CONNECTION_BUFFER,
