@@ -75,10 +75,12 @@ use serde::Serialize;
 
 pub mod answer;
 pub mod config;
+mod discovery;
 mod lock;
 mod output;
 mod remote;
 mod serve;
+mod source;
 #[cfg(test)]
 mod test_model;
 
@@ -116,6 +118,10 @@ pub struct Stats {
     pub sources_added: u64,
     /// Times a discovered source was dropped because its publishers were gone.
     pub sources_removed: u64,
+    /// Sources with a velocity service that are not served, with the reason: their
+    /// services could not be opened (e.g. created by another process with other
+    /// limits), or `sources.max_sources` was reached.
+    pub unserved: BTreeMap<String, String>,
 }
 
 impl Stats {
