@@ -83,7 +83,7 @@ struct PerSample {
 #[test]
 fn serve_path_allocates_no_more_than_its_libraries() {
     let ghnetd = measure(|driver| {
-        let daemon = InProcess::start_on(
+        let mut daemon = InProcess::start_on(
             "noalloc",
             |c| {
                 c.sources.static_sources = SOURCES.map(String::from).to_vec();

@@ -101,8 +101,10 @@ impl InProcess {
         }
     }
 
-    /// Requests the stop and returns what `run` returned.
-    pub fn stop(mut self) -> Stats {
+    /// Requests the stop and returns what `run` returned. The namespace stays until
+    /// `self` is dropped, so the test's own ports (declared later, dropped earlier)
+    /// close cleanly.
+    pub fn stop(&mut self) -> Stats {
         self.shutdown.request();
         self.thread
             .take()
