@@ -209,7 +209,9 @@ pub struct HeadingEstimate {
     /// Plain `atan2(v_east, v_north)` heading in degrees, `[0, 360)`, as a model-free
     /// reference; NaN for invalid input.
     pub atan2_deg: f32,
-    /// Horizontal speed `sqrt(v_north² + v_east²)` in m/s; NaN for non-finite input.
+    /// Horizontal speed `sqrt(v_north² + v_east²)` in m/s; NaN when `v_north` or
+    /// `v_east` is not finite. `InvalidInput` answers carry it too (e.g. a speed above
+    /// ghnetd's `model.max_speed`).
     pub speed: f32,
     /// Stable 32-bit id of the model weights (a hash), so consumers can tell models
     /// apart even when names collide.

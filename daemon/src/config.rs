@@ -270,9 +270,9 @@ pub struct ZenohSection {
     /// Zenoh gossip scouting (peers telling each other about peers). Off by default.
     pub gossip: bool,
     /// A standard Zenoh json5 config file for everything else (router connection,
-    /// TLS, access control, transmit queue). Unset: Zenoh's defaults under the keys
-    /// above, except a deeper transmit queue (16 batches for data, 50 ms before a
-    /// heading is dropped) so that bursts of headings from many sources are not lost.
+    /// TLS, access control, timeouts). Unset: Zenoh's defaults under the keys above,
+    /// except ghnetd's transmit queue ([`ZENOH_TX_DEFAULTS`]); a file's own values rule
+    /// instead, so a file should keep them.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub config_file: Option<PathBuf>,
 }
@@ -295,15 +295,9 @@ impl Default for ZenohSection {
 }
 
 /// ghnetd's Zenoh transmit queue when no `zenoh.config_file` is given (JSON5 values
-/// by config path; a config file replaces them).
-///
-/// The heading publishers drop on congestion, and the last heading of each round is
-/// `express` (it sends its batch at once), so 100 sources answering one sample each
-/// take 100 batches. Zenoh's default queue (2 batches, drop after 1 ms) lost 18% of
-/// such a burst on a loaded 2-core machine (tests/tests/soak.rs). 16 batches, and up
-/// to 50 ms for one to free before dropping: no loss there. A consumer that stops
-/// reading costs the loop at most one such wait: while the queue stays congested,
-/// Zenoh drops further headings without waiting.
+/// by config path; a config file replaces them): 16 batches, and up to 50 ms for one
+/// to free before a heading is dropped. Why: daemon/README.md, section "Zenoh
+/// transmit queue".
 pub const ZENOH_TX_DEFAULTS: [(&str, &str); 2] = [
     ("transport/link/tx/queue/size/data", "16"),
     (
