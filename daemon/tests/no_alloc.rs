@@ -31,9 +31,10 @@ use ghnet_client::{
     encode_zenoh, HeadingEstimate, HeadingSubscriber, IpcConfig, VelocityPublisher, VelocitySample,
 };
 
-/// Allowed excess of ghnetd over the raw loop, per sample. Covers the wake-ups that
-/// differ between two runs (the sources of a burst may wake the loop together or one
-/// by one: a few allocations per 128 samples); one allocation per sample is 1.0.
+/// Allowed excess of ghnetd over the raw loop, per sample, both the fewest of
+/// several measurements. Covers the wake-ups that differ between two runs (the
+/// sources of a burst may wake the loop together or one by one: a few allocations per
+/// 128 samples); one allocation per sample is 1.0.
 const MARGIN: f64 = 0.25;
 
 struct Counting;
@@ -136,16 +137,22 @@ fn measure(serve: impl FnOnce(&mut dyn FnMut(IpcConfig, String))) -> PerSample {
     serve(&mut |ipc, endpoint| {
         let mut d = Driver::new(&ipc, &endpoint);
         d.warm_up();
-        let one_in_flight = counted(1000, |n| d.one_in_flight(n));
-        let bursts = counted(8 * SOURCES.len() as u64 * PER_SOURCE, |n| {
-            d.bursts(n / (SOURCES.len() as u64 * PER_SOURCE))
-        });
+        let one_in_flight = fewest(|| counted(200, |n| d.one_in_flight(n)));
+        let burst = SOURCES.len() as u64 * PER_SOURCE;
+        let bursts = fewest(|| counted(2 * burst, |n| d.bursts(n / burst)));
         result = Some(PerSample {
             one_in_flight,
             bursts,
         });
     });
     result.expect("the driver ran")
+}
+
+/// The smallest of several measurements. A loaded machine adds allocations in the
+/// libraries now and then (the raw loop shows them as much as ghnetd), never takes
+/// any away, while an allocation of ghnetd's own per sample is in every measurement.
+fn fewest(mut measure: impl FnMut() -> f64) -> f64 {
+    (0..6).map(|_| measure()).fold(f64::INFINITY, f64::min)
 }
 
 /// Allocations on counted threads per sample while `run(samples)` answers them.
