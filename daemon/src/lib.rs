@@ -51,7 +51,7 @@
 //! per-sample path allocates nothing of its own: ports and model scratch are made
 //! once per source / once per daemon. The libraries allocate on it: iceoryx2 0.10
 //! one small object per loaned sample and two short lists per WaitSet wake-up,
-//! Zenoh a reference-counted buffer per `put`; none grows with load.
+//! Zenoh its payload buffer per `put`; none grows with load.
 //! `tests/no_alloc.rs` counts the allocations of the real serve path and of a loop
 //! making only the library calls, and requires the same count per sample.
 //!

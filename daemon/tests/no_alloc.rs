@@ -11,10 +11,10 @@
 //! Per sample, ghnetd may exceed the raw loop by less than [`MARGIN`]; a single
 //! allocation of its own per sample would add 1.0. The raw loop's count is what the
 //! libraries allocate (iceoryx2 0.10: one `Rc` per `loan_uninit`, two short `Vec`s per
-//! WaitSet wake-up; Zenoh: its reference-counted buffer per `put`); the test prints
-//! both. Two patterns: one sample in flight (the normal case: the one-sample path)
-//! and bursts from several sources that wake together (the batch path: one model
-//! call and one Zenoh batch per round).
+//! WaitSet wake-up; Zenoh: the payload buffer and its reference count per `put`); the
+//! test prints both. Two patterns: one sample in flight (the normal case: the
+//! one-sample path) and bursts from several sources that wake together (the batch
+//! path: one model call and one Zenoh batch per round).
 
 mod common;
 
