@@ -69,6 +69,14 @@ pub enum Head {
         /// Trained heading range `[lo, hi]`, degrees; `[0, 360]` for the full circle.
         range_deg: [f32; 2],
     },
+    /// The temporal models' learned filter step over the previous output `ψₚ`: three
+    /// logits `(hold, forward, reverse)` give softmax gains `(g_h, g_f, g_r)` and
+    /// `ψ = ψₚ + g_f·wrap(A − ψₚ) + g_r·wrap(A + π − ψₚ)`, `log σ = y₃` ([`filter_step`]).
+    /// A saturated forward gain returns atan2 exactly (no bias at speed, nothing to
+    /// learn about `v/|v|`); holding keeps the heading through a stop; the reverse gain
+    /// follows a course opposite to the heading, as when a car backs up. Without a
+    /// previous output (the first epoch of a history) `ψₚ = A`.
+    Filter,
 }
 
 /// Wrap radians to (−π, π].
@@ -131,6 +139,7 @@ impl Head {
             Head::Angle { .. } => 2,
             Head::Blend { .. } => 3,
             Head::Residual { .. } => 4,
+            Head::Filter => 4,
         }
     }
 
@@ -146,6 +155,7 @@ impl Head {
                 half_range_deg,
             } => (centre_deg - half_range_deg, centre_deg + half_range_deg),
             Head::Residual { range_deg } => (range_deg[0], range_deg[1]),
+            Head::Filter => (0.0, 360.0),
         }
     }
 
@@ -171,6 +181,10 @@ impl Head {
                 let w = sigmoid(y[1]);
                 (a + w * wrap_rad(theta - a), y[2])
             }
+            Head::Filter => {
+                let a = v_east.atan2(v_north);
+                (filter_step(y, a, a).0, y[3])
+            }
         }
     }
 
@@ -194,6 +208,29 @@ impl Head {
         let sigma = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX).exp() * sigma_scale;
         (deg, sigma.to_degrees().min(MAX_STD_DEG))
     }
+}
+
+/// Softmax of the filter head's three logits `(hold, forward, reverse)`: the gains.
+#[inline]
+pub fn filter_gains(y: &[f32]) -> [f32; 3] {
+    let m = y[0].max(y[1]).max(y[2]);
+    let e = [(y[0] - m).exp(), (y[1] - m).exp(), (y[2] - m).exp()];
+    let s = e[0] + e[1] + e[2];
+    [e[0] / s, e[1] / s, e[2] / s]
+}
+
+/// One filter step ([`Head::Filter`]): from outputs `y`, the course `course = atan2(v_E,
+/// v_N)` and the previous heading `prior` (radians), the heading (radians, not wrapped),
+/// the gains and the two innovations `(wrap(A − ψₚ), wrap(A + π − ψₚ))` the lab's loss
+/// differentiates.
+#[inline]
+pub fn filter_step(y: &[f32], course: f32, prior: f32) -> (f32, [f32; 3], [f32; 2]) {
+    let g = filter_gains(y);
+    let d = [
+        wrap_rad(course - prior),
+        wrap_rad(course + std::f32::consts::PI - prior),
+    ];
+    (prior + g[1] * d[0] + g[2] * d[1], g, d)
 }
 
 /// Scale velocities into the network's input: divided by the model's `input_scale_mps`,

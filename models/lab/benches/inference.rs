@@ -30,7 +30,7 @@ fn bench(c: &mut Criterion) {
     let mut p = Predictor::new(model.clone());
     let (vn, ve) = ghnet_lab::sim::spread_velocities(4096);
     let scale = model.meta().input_scale_mps;
-    let macs = model.network().macs_per_sample() as u64;
+    let macs = model.network().unwrap().macs_per_sample() as u64;
 
     let mut g = c.benchmark_group("single");
     g.throughput(Throughput::Elements(1));
@@ -42,7 +42,7 @@ fn bench(c: &mut Criterion) {
         })
     });
     for k in Kernel::available() {
-        let net = model.network().clone().with_kernel(k);
+        let net = model.network().unwrap().clone().with_kernel(k);
         let mut s = net.scratch(1);
         let mut out = vec![0.0f32; net.outputs()];
         g.bench_function(BenchmarkId::new("forward_one", k), |b| {
@@ -73,7 +73,7 @@ fn bench(c: &mut Criterion) {
         let mut g = c.benchmark_group(group);
         g.throughput(Throughput::Elements(n as u64 * per_sample));
         for k in Kernel::available() {
-            let net = model.network().clone().with_kernel(k);
+            let net = model.network().unwrap().clone().with_kernel(k);
             let mut s = net.scratch(n);
             let mut y = Mat::zeros(net.outputs(), n);
             g.bench_function(BenchmarkId::new("forward_256", k), |b| {
@@ -97,7 +97,7 @@ fn bench(c: &mut Criterion) {
     g.finish();
 
     let mut g = c.benchmark_group("gelu");
-    let len = model.network().gelus_per_sample() * 256;
+    let len = model.network().unwrap().gelus_per_sample() * 256;
     let src: Vec<f32> = (0..len).map(|i| (i % 1000) as f32 * 0.01 - 5.0).collect();
     let mut buf = src.clone();
     g.throughput(Throughput::Elements(len as u64));

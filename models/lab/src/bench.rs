@@ -122,7 +122,11 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Measure `model` on `kernel`, `seconds` per measurement.
 pub fn run(model: &Arc<Model>, kernel: Kernel, seconds: f64) -> Report {
-    let net: Network = model.network().clone().with_kernel(kernel);
+    let net: Network = model
+        .network()
+        .expect("ghnet bench times a network; kf has none")
+        .clone()
+        .with_kernel(kernel);
     let macs = net.macs_per_sample();
     let (vn, ve) = ghnet_lab::sim::spread_velocities(4096);
     let scale = model.meta().input_scale_mps;

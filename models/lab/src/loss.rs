@@ -68,7 +68,45 @@ pub fn head_loss(
             dy[2] = sign * sn.atan2(c) * w * (1.0 - w);
             dy[3] = ds;
         }
+        Head::Filter => {
+            // Without a prior (`Head::raw`): the filter step from ψₚ = A.
+            let a = v_east.atan2(v_north);
+            return filter_loss(y, a, a, truth_deg, sigma_weight, dy);
+        }
     }
+    (loss, e, s.exp())
+}
+
+/// Loss of the filter head ([`ghnet_models::head::Head::Filter`]) for one epoch whose
+/// course is `course` and whose previous heading is `prior` (radians), with its gradient
+/// with respect to the four outputs in `dy`. Returns `(loss, wrapped error, raw σ)`.
+///
+/// `ψ = ψₚ + Σ g_j d_j` with softmax gains `g` and innovations `d = (0, wrap(A − ψₚ),
+/// wrap(A + π − ψₚ))`, so `∂ψ/∂y_i = g_i (d_i − ψ + ψₚ)`.
+pub fn filter_loss(
+    y: &[f32],
+    course: f32,
+    prior: f32,
+    truth_deg: f32,
+    sigma_weight: f32,
+    dy: &mut [f32],
+) -> (f32, f32, f32) {
+    let (psi, g, d) = ghnet_models::head::filter_step(y, course, prior);
+    let e = wrap_rad(psi - truth_deg.to_radians());
+    let sign = e.signum() * (e != 0.0) as i32 as f32;
+    let s = y[3].clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
+    let inv_var = (-2.0 * s).exp();
+    let loss = e.abs() + sigma_weight * (0.5 * e * e * inv_var + s);
+    let mean = psi - prior;
+    let dd = [0.0, d[0], d[1]];
+    for i in 0..3 {
+        dy[i] = sign * g[i] * (dd[i] - mean);
+    }
+    dy[3] = if y[3] == s {
+        sigma_weight * (1.0 - e * e * inv_var)
+    } else {
+        0.0
+    };
     (loss, e, s.exp())
 }
 
@@ -79,6 +117,8 @@ pub fn initial_bias(head: &Head) -> Vec<f32> {
         Head::Angle { .. } => vec![0.0, 0.0],
         Head::Residual { .. } => vec![1.0, 0.0, 0.0, 0.0],
         Head::Blend { .. } => vec![0.0, 0.0, 0.0],
+        // Follow the course at first: the filter starts as atan2.
+        Head::Filter => vec![0.0, 2.0, -2.0, 0.0],
     }
 }
 
@@ -130,5 +170,38 @@ mod tests {
         };
         check_loss_grad(b, &[0.2, 0.3, -0.5], 1.0, 0.5, 60.0);
         check_loss_grad(b, &[-0.6, -1.1, 0.4], -0.1, 0.05, 10.0);
+    }
+
+    /// The filter head (the temporal models' new layer) against finite differences,
+    /// with a prior and without one, forward, holding and reversing configurations.
+    #[test]
+    fn filter_loss_gradient_matches_finite_differences() {
+        check_loss_grad(Head::Filter, &[0.3, 1.2, -0.4, -0.5], 1.0, 0.5, 40.0);
+        let cases: [([f32; 4], f32, f32, f32); 4] = [
+            ([0.1, 0.8, -0.3, -1.0], 0.5, 0.2, 30.0),
+            ([1.5, -0.2, 0.4, 0.3], 2.0, -1.0, 100.0),
+            ([-0.4, 0.1, 1.1, -2.0], -2.5, 0.9, 45.0),
+            ([0.0, 0.0, 0.0, 0.5], 3.0, -3.0, 200.0),
+        ];
+        for (y, course, prior, truth) in cases {
+            for k in 0..4 {
+                let w = if k == 3 { 0.3 } else { 0.0 };
+                let mut dy = [0.0; 4];
+                filter_loss(&y, course, prior, truth, w, &mut dy);
+                let h = 1e-3;
+                let (mut yp, mut ym) = (y, y);
+                yp[k] += h;
+                ym[k] -= h;
+                let mut t = [0.0; 4];
+                let lp = filter_loss(&yp, course, prior, truth, w, &mut t).0 as f64;
+                let lm = filter_loss(&ym, course, prior, truth, w, &mut t).0 as f64;
+                let fd = (lp - lm) / (2.0 * h as f64);
+                assert!(
+                    (fd - dy[k] as f64).abs() < 2e-3 * (1.0 + fd.abs()),
+                    "{y:?} output {k}: analytic {} fd {fd}",
+                    dy[k]
+                );
+            }
+        }
     }
 }

@@ -330,7 +330,12 @@ fn run(cli: Cli) -> Result<()> {
 /// Raw outputs for `v_north v_east` lines on stdin, one output line each.
 fn forward_stdin(m: &Model) -> Result<()> {
     use std::io::{BufRead, Write};
-    let net = m.network();
+    let Some(ghnet_models::model::Engine::Epoch(net)) = Some(m.engine()) else {
+        bail!(
+            "forward prints a per-epoch network's outputs; {} is not one",
+            m.name()
+        );
+    };
     let mut scratch = net.scratch(1);
     let mut y = vec![0.0f32; net.outputs()];
     let stdout = std::io::stdout();
@@ -423,6 +428,7 @@ fn train_recipe(r: &Recipe, output: &std::path::Path, quiet: bool) -> Result<()>
             "eval_max_speed": r.eval_max_speed,
         }),
         metrics: serde_json::Value::Null,
+        kind: ghnet_models::weights::ModelKind::Epoch,
     };
     // Measure on held-out data and store the headline numbers in the file itself.
     let model = Arc::new(Model::new(trained.params.clone(), meta.clone()));
