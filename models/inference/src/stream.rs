@@ -309,6 +309,12 @@ impl History {
         &self.state
     }
 
+    /// Replace the recurrent state. For training, which perturbs the previous heading to
+    /// teach the network to recover from its own mistakes, and for tests.
+    pub fn set_state(&mut self, state: StepState) {
+        self.state = state;
+    }
+
     /// Epochs in the feature ring (at most the window).
     pub fn len(&self) -> usize {
         self.filled
