@@ -14,26 +14,44 @@ use crate::params::ParamSet;
 use crate::stream::{Epoch, History, StreamPredictor, WindowHead};
 use crate::weights::{self, ModelKind, ModelMeta, WeightsError};
 
-/// The models compiled into every binary, by name. `ghnet-full` is the default.
-pub const BUILTIN: [(&str, &[u8]); 2] = [
+/// The models compiled into every binary, by name. `ghnet-temporal` is the default;
+/// `kf` is the model-free Kalman filter baseline (parameters only).
+pub const BUILTIN: [(&str, &[u8]); 4] = [
     (
-        "ghnet-full",
-        include_bytes!("../weights/ghnet-full.safetensors").as_slice(),
+        "ghnet-temporal",
+        include_bytes!("../weights/ghnet-temporal.safetensors").as_slice(),
+    ),
+    (
+        "ghnet-epoch",
+        include_bytes!("../weights/ghnet-epoch.safetensors").as_slice(),
     ),
     (
         "paper-s1",
         include_bytes!("../weights/paper-s1.safetensors").as_slice(),
     ),
+    ("kf", include_bytes!("../weights/kf.safetensors").as_slice()),
 ];
 
+/// Names older configurations used, and the built-in model each now means: the
+/// per-epoch full-circle model was `ghnet-full` before temporal models existed.
+pub const ALIASES: [(&str, &str); 1] = [("ghnet-full", "ghnet-epoch")];
+
+/// The built-in name `name` stands for (itself unless it is an alias).
+fn resolve(name: &str) -> &str {
+    ALIASES
+        .iter()
+        .find(|(a, _)| *a == name)
+        .map_or(name, |(_, m)| *m)
+}
+
 /// Name of the default model.
-pub const DEFAULT_MODEL: &str = "ghnet-full";
+pub const DEFAULT_MODEL: &str = "ghnet-temporal";
 
 /// Why a model could not be had.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelError {
     /// The name is neither built in nor an existing file.
-    #[error("unknown model `{0}`: not a built-in model (ghnet-full, paper-s1) and no such file")]
+    #[error("unknown model `{0}`: not a built-in model (ghnet-temporal, ghnet-epoch, paper-s1, kf) and no such file")]
     Unknown(String),
     /// The file or embedded bytes are malformed.
     /// (The cause is part of the message and deliberately not a `source()`, so a
@@ -106,6 +124,7 @@ impl Model {
 
     /// A built-in model by name.
     pub fn builtin(name: &str) -> Result<Self, ModelError> {
+        let name = resolve(name);
         let bytes = BUILTIN
             .iter()
             .find(|(n, _)| *n == name)
@@ -134,7 +153,7 @@ impl Model {
 
     /// A built-in name, or else a path to a safetensors file.
     pub fn from_name_or_path(s: &str) -> Result<Self, ModelError> {
-        if BUILTIN.iter().any(|(n, _)| *n == s) {
+        if BUILTIN.iter().any(|(n, _)| *n == resolve(s)) {
             return Self::builtin(s);
         }
         let p = Path::new(s);

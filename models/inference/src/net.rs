@@ -635,7 +635,7 @@ mod tests {
 
     #[test]
     fn every_kernel_matches_f64_reference_on_shipped_model() {
-        let model = crate::Model::builtin("ghnet-full").expect("embedded model");
+        let model = crate::Model::builtin("ghnet-epoch").expect("embedded model");
         check_against_reference(model.params(), 2e-5);
     }
 
@@ -665,7 +665,7 @@ mod tests {
 
     #[test]
     fn scratch_of_another_shape_is_refused() {
-        let model = crate::Model::builtin("ghnet-full").expect("embedded model");
+        let model = crate::Model::builtin("ghnet-epoch").expect("embedded model");
         let small = Network::fold(&ParamSet::init(&Arch::tiny(3), |b| b / 2.0));
         let mut s = small.scratch(4);
         let mut out = vec![0.0; model.network().unwrap().outputs()];

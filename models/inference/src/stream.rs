@@ -11,7 +11,8 @@
 //!   pushed into a ring of the last `W` epochs, and the fully connected head (collapsed
 //!   to one affine map, as in the paper's network) reads the ring and gives the gains of
 //!   a filter step ([`crate::head::Head::Filter`]): hold the previous heading, follow the
-//!   course, or follow the course turned by 180° (reversing). Per epoch that is one
+//!   course (how far: a learned gain), and whether the course is turned by 180°
+//!   (reversing). Per epoch that is one
 //!   convolution pass and one small matrix-vector product; nothing is recomputed and
 //!   nothing is allocated.
 //! * **kf**: the circular Kalman filter on atan2 ([`ModelKind::Kf`]): random-walk heading,
@@ -31,13 +32,15 @@
 
 use std::sync::Arc;
 
-use crate::head::{accuracy_sigma_base, filter_step, heading_deg, scale_input, MAX_STD_DEG};
+use crate::head::{
+    accuracy_sigma_base, filter_step, heading_deg, scale_input, KalmanBase, MAX_STD_DEG,
+};
 use crate::model::{finish_epoch, Engine, Model, Prediction, Status, StatusPolicy};
 use crate::net::Scratch;
 use crate::weights::ModelKind;
 
 /// Per-epoch inputs of the temporal network (see [`inputs`]).
-pub const INPUTS: usize = 10;
+pub const INPUTS: usize = 11;
 
 /// Speed (m/s) above which an epoch counts as moving for the history's clocks (time
 /// stopped, time reversing), when the receiver's accuracy does not demand more.
@@ -119,16 +122,51 @@ pub fn moving(speed: f32, speed_acc: f32) -> bool {
     speed >= MOVING_SPEED && !(speed_acc.is_finite() && speed < 4.0 * speed_acc)
 }
 
+/// The Kalman step of an epoch for a model of `kind` (temporal or kf) from the
+/// history's state: prior variance (previous σ² plus `q²·dt`; a uniform error without a
+/// previous heading) and measurement variance `(σ_v/ŝ)²`.
+pub fn kalman_base(
+    kind: &ModelKind,
+    state: &StepState,
+    v_north: f32,
+    v_east: f32,
+    dt: f32,
+) -> KalmanBase {
+    let (q, sv) = match *kind {
+        ModelKind::Temporal {
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+            ..
+        }
+        | ModelKind::Kf {
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+            ..
+        } => (q_deg_per_sqrt_s.to_radians(), sigma_v_mps),
+        ModelKind::Epoch => (0.0, f32::NAN),
+    };
+    let cap = MAX_STD_DEG.to_radians();
+    let r = accuracy_sigma_base(v_north, v_east, sv).unwrap_or(cap);
+    let p = if state.has_prior {
+        ((2.0 * state.log_sigma).exp() + q * q * dt).min(cap * cap)
+    } else {
+        cap * cap
+    };
+    KalmanBase { p, r2: r * r }
+}
+
 /// The temporal network's per-epoch inputs, all O(1): the course relative to the
 /// previous heading `(cos, sin)`, log and linear speed, the log measurement σ from
 /// sAcc and whether sAcc is known, the previous log σ, log dt, log time stopped, log
-/// time reversing. Relative angles make the network rotation-invariant.
+/// time reversing, and the gain of the Kalman step it corrects. Relative angles make
+/// the network rotation-invariant.
 pub fn inputs(
     state: &StepState,
     v_north: f32,
     v_east: f32,
     speed_acc: f32,
     dt: f32,
+    base: &KalmanBase,
 ) -> [f32; INPUTS] {
     let speed = v_north.hypot(v_east);
     let a = v_east.atan2(v_north);
@@ -152,6 +190,7 @@ pub fn inputs(
         0.5 * dt.clamp(0.01, 1000.0).ln(),
         0.5 * state.t_still.ln_1p(),
         0.5 * state.t_opposite.ln_1p(),
+        base.gain(),
     ]
 }
 
@@ -451,51 +490,45 @@ impl StreamPredictor {
                 h.state = advance(&h.state, vn, ve, acc, dt, p.heading_deg.to_radians(), 0.0);
                 return p;
             }
-            Engine::Kf => self.kf_step(h, vn, ve, dt),
+            Engine::Kf => {
+                // The plain Kalman filter is the filter head with zero outputs.
+                let base = kalman_base(&model.meta().kind, &h.state, vn, ve, dt);
+                self.y[..3].copy_from_slice(&[0.0, -1.0, 0.0]);
+                self.filter(h, &base, vn, ve, acc, dt, 1.0)
+            }
             Engine::Temporal { features, head } => {
-                let x = inputs(&h.state, vn, ve, acc, dt);
+                let base = kalman_base(&model.meta().kind, &h.state, vn, ve, dt);
+                let x = inputs(&h.state, vn, ve, acc, dt, &base);
                 let scratch = self.scratch.as_mut().expect("network scratch");
                 features.forward_one(&x, h.push_slot(), scratch);
-                head.apply(&h.ring, h.newest, h.filled, &mut self.y[..4]);
-                let a = ve.atan2(vn);
-                let prior = if h.state.has_prior { h.state.psi } else { a };
-                let (psi, _, _) = filter_step(&self.y, a, prior);
-                let log_sigma = self.y[3].clamp(crate::head::LOG_SIGMA_MIN, log_sigma_cap());
-                h.state = advance(&h.state, vn, ve, acc, dt, psi, log_sigma);
-                let std = (log_sigma.exp() * model.meta().sigma_scale).to_degrees();
-                (psi, std.min(MAX_STD_DEG))
+                head.apply(&h.ring, h.newest, h.filled, &mut self.y[..3]);
+                self.filter(h, &base, vn, ve, acc, dt, model.meta().sigma_scale)
             }
         };
         self.finish(psi, std_deg, vn, ve, speed, acc)
     }
 
-    /// The circular Kalman filter step on atan2.
-    fn kf_step(&mut self, h: &mut History, vn: f32, ve: f32, dt: f32) -> (f32, f32) {
-        let ModelKind::Kf {
-            q_deg_per_sqrt_s,
-            sigma_v_mps,
-            ..
-        } = self.model.meta().kind
-        else {
-            unreachable!("kf engine without kf parameters")
-        };
-        let cap = MAX_STD_DEG.to_radians();
-        let r = accuracy_sigma_base(vn, ve, sigma_v_mps).unwrap_or(cap);
+    /// The filter step from outputs `self.y`: heading (radians) and reported σ
+    /// (degrees, raw σ times `sigma_scale`); updates the history's state.
+    #[allow(clippy::too_many_arguments)] // one epoch's numbers
+    fn filter(
+        &mut self,
+        h: &mut History,
+        base: &KalmanBase,
+        vn: f32,
+        ve: f32,
+        acc: f32,
+        dt: f32,
+        sigma_scale: f32,
+    ) -> (f32, f32) {
         let a = ve.atan2(vn);
-        let s = &h.state;
-        let (psi, var) = if !s.has_prior {
-            (a, r * r)
-        } else {
-            let q = q_deg_per_sqrt_s.to_radians();
-            let p = (2.0 * s.log_sigma).exp() + q * q * dt;
-            let p = p.min(cap * cap);
-            // A velocity within its own noise says nothing about the heading: no update.
-            let k = if r < cap { p / (p + r * r) } else { 0.0 };
-            (s.psi + k * crate::head::wrap_rad(a - s.psi), (1.0 - k) * p)
-        };
-        let log_sigma = 0.5 * var.max(1e-12).ln();
-        h.state = advance(&h.state, vn, ve, f32::NAN, dt, psi, log_sigma);
-        (psi, var.sqrt().to_degrees().min(MAX_STD_DEG))
+        let prior = if h.state.has_prior { h.state.psi } else { a };
+        let (psi, log_sigma, _, _) = filter_step(&self.y, a, prior, base);
+        let log_sigma = log_sigma.clamp(crate::head::LOG_SIGMA_MIN, log_sigma_cap());
+        h.state = advance(&h.state, vn, ve, acc, dt, psi, log_sigma);
+        let reported = (log_sigma + self.y[2]).min(crate::head::LOG_SIGMA_MAX);
+        let std = (reported.exp() * sigma_scale).to_degrees();
+        (psi, std.min(MAX_STD_DEG))
     }
 
     /// Heading in [0, 360), σ, status: `Held` for a stopped vehicle with a heading.
@@ -556,12 +589,17 @@ mod tests {
 
     /// A random temporal model (small widths, window 4) that survives a file round trip.
     pub(crate) fn temporal_model(seed: u64) -> Model {
-        let mut arch = Arch::temporal(INPUTS, 4, 4);
+        let mut arch = Arch::temporal(INPUTS, 4, 3);
         arch.conv = vec![8, 12, 6];
         arch.fc = vec![7, 5];
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let p = ParamSet::init(&arch, |b| rng.random_range(-b..b));
-        let m = meta(arch, ModelKind::Temporal { max_gap_s: 5.0 }, Head::Filter);
+        let kind = ModelKind::Temporal {
+            max_gap_s: 5.0,
+            q_deg_per_sqrt_s: 10.0,
+            sigma_v_mps: 0.3,
+        };
+        let m = meta(arch, kind, Head::Filter);
         let bytes = crate::weights::to_bytes(&p, &m);
         Model::from_bytes("test", &bytes).expect("round trip")
     }
@@ -627,8 +665,14 @@ mod tests {
             } else {
                 f32::NAN
             };
-            xs.push(inputs(&h.state, e.v_north, e.v_east, acc, dt));
-            let prior = h.state;
+            let state = if h.t_last.is_some_and(|t| e.t_s - t <= 5.0 && e.t_s >= t) {
+                h.state
+            } else {
+                StepState::EMPTY
+            };
+            let base = kalman_base(&model.meta().kind, &state, e.v_north, e.v_east, dt);
+            xs.push(inputs(&state, e.v_north, e.v_east, acc, dt, &base));
+            let prior = state;
             let p = sp.predict(&mut h, &e);
             // Recompute: features of the last W inputs, newest first, zero when absent.
             let mut flat = vec![0.0f32; 4 * c];
@@ -637,12 +681,15 @@ mod tests {
                 features.forward_one(&xs[xs.len() - 1 - k], &mut f, &mut scratch);
                 flat[k * c..(k + 1) * c].copy_from_slice(&f);
             }
-            let y: Vec<f32> = (0..4)
+            let y: Vec<f32> = (0..3)
                 .map(|o| b_fc[o] + (0..4 * c).map(|j| w_fc[(o, j)] * flat[j]).sum::<f32>())
                 .collect();
             let a = e.v_east.atan2(e.v_north);
             let prior = if prior.has_prior { prior.psi } else { a };
-            let psi = filter_step(&y, a, prior).0.to_degrees().rem_euclid(360.0);
+            let psi = filter_step(&y, a, prior, &base)
+                .0
+                .to_degrees()
+                .rem_euclid(360.0);
             let d = (psi - p.heading_deg).rem_euclid(360.0);
             assert!(d.min(360.0 - d) < 1e-3, "{psi} vs {}", p.heading_deg);
         }

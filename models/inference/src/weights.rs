@@ -57,6 +57,10 @@ pub enum ModelKind {
         /// A time step longer than this (s) clears the history: after a long fix gap
         /// the vehicle may have turned anywhere.
         max_gap_s: f32,
+        /// Random-walk heading noise of the Kalman step the network corrects, °/√s.
+        q_deg_per_sqrt_s: f32,
+        /// Velocity noise per axis of that step's measurement σ `σ_v/ŝ`, m/s.
+        sigma_v_mps: f32,
     },
     /// The model-free circular Kalman filter on atan2 (`crate::stream::Kf`): the baseline
     /// a temporal network must beat, shipped so it can be selected like any model.
@@ -75,7 +79,9 @@ impl ModelKind {
     pub fn max_gap_s(&self) -> Option<f32> {
         match *self {
             ModelKind::Epoch => None,
-            ModelKind::Temporal { max_gap_s } | ModelKind::Kf { max_gap_s, .. } => Some(max_gap_s),
+            ModelKind::Temporal { max_gap_s, .. } | ModelKind::Kf { max_gap_s, .. } => {
+                Some(max_gap_s)
+            }
         }
     }
 }
@@ -85,7 +91,7 @@ impl ModelKind {
 pub struct ModelMeta {
     /// Format tag, [`FORMAT`].
     pub format: String,
-    /// Model name, e.g. `ghnet-full`.
+    /// Model name, e.g. `ghnet-epoch`.
     pub name: String,
     /// Layer sizes.
     pub architecture: Arch,
@@ -355,11 +361,16 @@ fn check_arch(a: &Arch, kind: &ModelKind, head: &Head) -> Result<(), WeightsErro
             }
             return Ok(());
         }
-        ModelKind::Temporal { max_gap_s } => {
-            if !(max_gap_s.is_finite() && max_gap_s > 0.0) {
+        ModelKind::Temporal {
+            max_gap_s,
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+        } => {
+            let ok = |v: f32| v.is_finite() && v > 0.0;
+            if !(ok(max_gap_s) && ok(q_deg_per_sqrt_s) && ok(sigma_v_mps)) {
                 return Err(WeightsError::BadMetadata {
                     key: "kind".into(),
-                    reason: format!("max_gap_s {max_gap_s} must be a positive number"),
+                    reason: "temporal parameters must be positive numbers".into(),
                 });
             }
             if a.input != crate::stream::INPUTS || !(2..=MAX_WINDOW).contains(&a.window) {

@@ -2,7 +2,7 @@
 //! one run, next to this core's peak FMA rate measured in the same run.
 //!
 //! Counting: a sample costs [`Network::macs_per_sample`] multiply-adds of the unpadded
-//! folded network (33,648 for `ghnet-full`: 2·24 + 24·48 + 48·96 + 96·192 + 192·48 + 48·4),
+//! folded network (33,648 for `ghnet-epoch`: 2·24 + 24·48 + 48·96 + 96·192 + 192·48 + 48·4),
 //! 2 FLOPs each. Bias, GELU (408 per sample) and the zero padding the kernels compute
 //! are not counted, so the share of peak understates the work the core does.
 

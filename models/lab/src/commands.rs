@@ -6,6 +6,8 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 
+use ghnet_lab::drive::Platform;
+use ghnet_lab::plot::{plot_heading_timeline, Series};
 use ghnet_lab::streval;
 use ghnet_lab::temporal::TemporalConfig;
 use ghnet_lab::timeline::{self, TemporalRecipe};
@@ -16,9 +18,14 @@ use ghnet_models::{Arch, Model};
 
 /// `ghnet train --recipe ghnet-temporal`: simulate, tune `kf` on validation tracks
 /// (written beside the output as `kf.safetensors`), train, judge on test tracks.
-pub fn train_temporal_recipe(output: &Path, seed: Option<u64>, epochs: Option<usize>) -> Result<()> {
+pub fn train_temporal_recipe(
+    name: &str,
+    output: &Path,
+    seed: Option<u64>,
+    epochs: Option<usize>,
+) -> Result<()> {
     let t0 = std::time::Instant::now();
-    let mut r = TemporalRecipe::shipped();
+    let mut r = TemporalRecipe::named(name).context("not a temporal recipe")?;
     if let Some(s) = seed {
         r.train.seed = s;
     }
@@ -26,15 +33,39 @@ pub fn train_temporal_recipe(output: &Path, seed: Option<u64>, epochs: Option<us
         r.train.epochs = e;
     }
     let [tr, va, te] = r.tracks();
-    let (kf, kf_mae) = timeline::tuned_kf(&va, r.train.max_gap_s);
-    eprintln!("kf tuned on validation tracks: {:?} (val MAE {kf_mae:.2}°)", kf.meta().kind);
+    // The shipped kf is tuned on the car tracks (the main use, and a stronger baseline
+    // for cars than a filter tuned on a mix); platform tables get their own tuned filter.
+    let cars = timeline::only(&va, Platform::Car);
+    let tips = timeline::only(&va, Platform::TurnInPlace);
+    let (kf, kf_mae) = timeline::tuned_kf(
+        if cars.is_empty() { &tips } else { &cars },
+        r.train.max_gap_s,
+    );
+    eprintln!(
+        "kf tuned on car validation tracks: {:?} (val MAE {kf_mae:.2}°)",
+        kf.meta().kind
+    );
+    let (kf_p, kf_p_mae) = timeline::tuned_kf(
+        if tips.is_empty() { &cars } else { &tips },
+        r.train.max_gap_s,
+    );
+    eprintln!(
+        "kf tuned on platform validation tracks: {:?} (val MAE {kf_p_mae:.2}°)",
+        kf_p.meta().kind
+    );
     let kf = Arc::new(with_data(&kf, &r)?);
     let kf_path = output.with_file_name("kf.safetensors");
     std::fs::write(&kf_path, kf.to_safetensors())
         .with_context(|| format!("writing {}", kf_path.display()))?;
     let trained = timeline::train_logged(&r.name, &tr, &va, &kf, None, &r.train)?;
     let model = Arc::new(with_data(&trained.model, &r)?);
-    let tables = timeline::tables(&model, &kf, &te, "held-out simulated tracks");
+    let tables = timeline::tables(
+        &model,
+        &kf,
+        Some(&Arc::new(kf_p)),
+        &te,
+        "held-out simulated tracks",
+    );
     for t in &tables {
         println!("### {}\n\n{}", t.title, streval::to_markdown(t));
     }
@@ -98,10 +129,18 @@ pub fn train_data(
     }
     let init = init.map(Model::from_name_or_path).transpose()?;
     let mut cfg = TemporalConfig::default();
+    let mut kf = builtin_kf()?;
     if let Some(m) = &init {
-        if let ghnet_models::weights::ModelKind::Temporal { max_gap_s } = m.meta().kind {
+        if let ghnet_models::weights::ModelKind::Temporal {
+            max_gap_s,
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+        } = m.meta().kind
+        {
             cfg.max_gap_s = max_gap_s;
             cfg.window = m.params().arch().window;
+            // Fine-tuning keeps the Kalman step the network learned to correct.
+            kf = Arc::new(streval::kf_model(q_deg_per_sqrt_s, sigma_v_mps, max_gap_s));
         }
         cfg.lr /= 4.0;
     }
@@ -113,7 +152,6 @@ pub fn train_data(
         cfg.tile_len = 16;
         cfg.tiles = 4;
     }
-    let kf = builtin_kf()?;
     let name = output
         .file_stem()
         .and_then(|s| s.to_str())
@@ -121,7 +159,13 @@ pub fn train_data(
         .to_owned();
     let trained = timeline::train_logged(&name, &tr, &va, &kf, init.as_ref(), &cfg)?;
     let model = Arc::new(trained.model);
-    for t in timeline::tables(&model, &kf, &va, "validation (last 20% of each track)") {
+    for t in timeline::tables(
+        &model,
+        &kf,
+        None,
+        &va,
+        "validation (last 20% of each track)",
+    ) {
         println!("### {}\n\n{}", t.title, streval::to_markdown(&t));
     }
     std::fs::write(output, model.to_safetensors())
@@ -166,7 +210,11 @@ fn train_restricted(
     let t = train::train(&arch, &head, 5.0, &dtr, &dva, &cfg, |_| {});
     let meta = ModelMeta {
         format: FORMAT.into(),
-        name: output.file_stem().and_then(|s| s.to_str()).unwrap_or("custom").into(),
+        name: output
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("custom")
+            .into(),
         architecture: arch,
         activation: "gelu_tanh".into(),
         head,
@@ -180,16 +228,25 @@ fn train_restricted(
         kind: ghnet_models::weights::ModelKind::Epoch,
     };
     ghnet_models::weights::write(output, &t.params, &meta)?;
-    eprintln!("restricted model: validation MAE {:.3}° -> {}", t.best_val_mae_deg, output.display());
+    eprintln!(
+        "restricted model: validation MAE {:.3}° -> {}",
+        t.best_val_mae_deg,
+        output.display()
+    );
     Ok(())
 }
 
 /// `ghnet eval` for stateful models, or any model with `--data`.
-pub fn eval_stream(model: &Arc<Model>, data: Option<&Path>) -> Result<()> {
-    let kf = if timeline::is_kf(model) {
-        model.clone()
-    } else {
-        builtin_kf()?
+pub fn eval_stream(
+    model: &Arc<Model>,
+    data: Option<&Path>,
+    kf: Option<&str>,
+    plot: Option<&Path>,
+) -> Result<()> {
+    let kf = match kf {
+        Some(k) => Arc::new(Model::from_name_or_path(k)?),
+        None if timeline::is_kf(model) => model.clone(),
+        None => builtin_kf()?,
     };
     let (tracks, what) = match data {
         Some(p) => {
@@ -202,11 +259,61 @@ pub fn eval_stream(model: &Arc<Model>, data: Option<&Path>) -> Result<()> {
         None => {
             let r: TemporalRecipe = serde_json::from_value(model.meta().training_data.clone())
                 .context("model metadata does not name the drives it was trained on; use --data")?;
-            (r.tracks()[2].clone(), "held-out simulated tracks".to_owned())
+            (
+                r.tracks()[2].clone(),
+                "held-out simulated tracks".to_owned(),
+            )
         }
     };
-    for t in timeline::tables(model, &kf, &tracks, &what) {
+    for t in timeline::tables(model, &kf, None, &tracks, &what) {
         println!("### {}\n\n{}", t.title, streval::to_markdown(&t));
     }
+    if let Some(p) = plot {
+        plot_timeline(model, &kf, &tracks[..1], &what, p)?;
+    }
+    Ok(())
+}
+
+/// Heading against time on `tracks`: truth, atan2, the Kalman filter, the model ±σ.
+fn plot_timeline(
+    model: &Arc<Model>,
+    kf: &Arc<Model>,
+    tracks: &[ghnet_lab::logs::LogTrack],
+    what: &str,
+    path: &Path,
+) -> Result<()> {
+    let t: Vec<f64> = tracks.iter().flat_map(|t| t.t_s.iter().copied()).collect();
+    let truth: Vec<f32> = tracks
+        .iter()
+        .flat_map(|t| t.truth_deg.iter().copied())
+        .collect();
+    let a = streval::run_atan2(tracks);
+    let k = streval::run_model(kf, tracks, "kf");
+    let m = streval::run_model(model, tracks, model.name());
+    let series = [
+        Series {
+            name: "truth",
+            heading_deg: &truth,
+            std_deg: None,
+        },
+        Series {
+            name: "atan2",
+            heading_deg: &a.heading_deg,
+            std_deg: None,
+        },
+        Series {
+            name: "kf",
+            heading_deg: &k.heading_deg,
+            std_deg: None,
+        },
+        Series {
+            name: model.name(),
+            heading_deg: &m.heading_deg,
+            std_deg: m.std_deg.as_deref(),
+        },
+    ];
+    let title = format!("{what}: heading against time ({} ±1σ)", model.name());
+    plot_heading_timeline(path, &title, &t, &series)?;
+    eprintln!("wrote {}", path.display());
     Ok(())
 }

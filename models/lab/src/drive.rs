@@ -199,22 +199,38 @@ fn car_plan(rng: &mut ChaCha8Rng, total: f64) -> Vec<Leg> {
             legs.push(Leg::new(uniform(rng, 3.0, 9.0), -uniform(rng, 0.5, 1.8), k));
             legs.push(Leg::new(uniform(rng, 1.0, 3.0), 0.0, 0.0));
         }
-        legs.push(Leg::new(uniform(rng, 4.0, 10.0), uniform(rng, 1.5, 4.0), 0.0));
+        legs.push(Leg::new(
+            uniform(rng, 4.0, 10.0),
+            uniform(rng, 1.5, 4.0),
+            0.0,
+        ));
         for _ in 0..rng.random_range(4..16) {
             block(rng, &mut legs);
         }
         // Park: slow down, maybe reverse into the space, then stand.
-        legs.push(Leg::new(uniform(rng, 3.0, 8.0), uniform(rng, 1.0, 3.0), 0.0));
+        legs.push(Leg::new(
+            uniform(rng, 3.0, 8.0),
+            uniform(rng, 1.0, 3.0),
+            0.0,
+        ));
         legs.push(Leg::new(uniform(rng, 1.0, 3.0), 0.0, 0.0));
         if rng.random::<f64>() < 0.5 {
             let k = sign(rng) * uniform(rng, 0.03, 0.18);
-            legs.push(Leg::new(uniform(rng, 4.0, 15.0), -uniform(rng, 0.3, 1.5), k));
+            legs.push(Leg::new(
+                uniform(rng, 4.0, 15.0),
+                -uniform(rng, 0.3, 1.5),
+                k,
+            ));
             if rng.random::<f64>() < 0.3 {
                 // Straighten up: forward a little, then back again.
                 legs.push(Leg::new(uniform(rng, 1.0, 2.0), 0.0, 0.0));
                 legs.push(Leg::new(uniform(rng, 2.0, 4.0), uniform(rng, 0.5, 1.0), -k));
                 legs.push(Leg::new(uniform(rng, 1.0, 2.0), 0.0, 0.0));
-                legs.push(Leg::new(uniform(rng, 2.0, 5.0), -uniform(rng, 0.3, 1.0), 0.0));
+                legs.push(Leg::new(
+                    uniform(rng, 2.0, 5.0),
+                    -uniform(rng, 0.3, 1.0),
+                    0.0,
+                ));
             }
         }
         legs.push(Leg::new(uniform(rng, 10.0, 120.0), 0.0, 0.0));
@@ -241,11 +257,19 @@ fn block(rng: &mut ChaCha8Rng, legs: &mut Vec<Leg>) {
     let u = rng.random::<f64>();
     let turn_speed = uniform(rng, 3.0, 7.0);
     if u < 0.45 {
-        legs.push(Leg::new(uniform(rng, 3.0, 6.0), uniform(rng, 1.0, 3.0), 0.0));
+        legs.push(Leg::new(
+            uniform(rng, 3.0, 6.0),
+            uniform(rng, 1.0, 3.0),
+            0.0,
+        ));
         legs.push(Leg::new(uniform(rng, 5.0, 70.0), 0.0, 0.0));
         // A queue: creep forward a car length or two, stop again.
         for _ in 0..rng.random_range(0..3) {
-            legs.push(Leg::new(uniform(rng, 2.0, 6.0), uniform(rng, 0.5, 2.5), 0.0));
+            legs.push(Leg::new(
+                uniform(rng, 2.0, 6.0),
+                uniform(rng, 0.5, 2.5),
+                0.0,
+            ));
             legs.push(Leg::new(uniform(rng, 2.0, 20.0), 0.0, 0.0));
         }
     }
@@ -333,9 +357,13 @@ struct Receiver {
 
 impl Receiver {
     fn draw(p: &DriveParams, rng: &mut ChaCha8Rng) -> Self {
-        let kind = *[ReceiverKind::Ublox, ReceiverKind::Rtklib, ReceiverKind::Nmea]
-            .choose(rng)
-            .expect("kinds");
+        let kind = *[
+            ReceiverKind::Ublox,
+            ReceiverKind::Rtklib,
+            ReceiverKind::Nmea,
+        ]
+        .choose(rng)
+        .expect("kinds");
         Self {
             kind,
             rate_hz: *p.rates_hz.choose(rng).unwrap_or(&1),
@@ -427,7 +455,10 @@ fn observe(
         let mut vn = ln + rx.sigma * 0.8 * ar[0] + white(rng);
         let mut ve = le + rx.sigma * 0.8 * ar[1] + white(rng);
         if rng.random::<f64>() < p.p_glitch {
-            let (m, d) = (uniform(rng, 1.0, 5.0), uniform(rng, 0.0, std::f64::consts::TAU));
+            let (m, d) = (
+                uniform(rng, 1.0, 5.0),
+                uniform(rng, 0.0, std::f64::consts::TAU),
+            );
             vn += m * d.cos();
             ve += m * d.sin();
         }

@@ -169,7 +169,10 @@ pub fn read_csv(path: &Path, need_truth: bool) -> Result<(Vec<LogTrack>, ReadSum
     };
     let (i_t, i_ns) = (col("t_s"), col("timestamp_ns"));
     if i_t.is_none() && i_ns.is_none() {
-        bail!("{}: need a time column, `t_s` or `timestamp_ns`", path.display());
+        bail!(
+            "{}: need a time column, `t_s` or `timestamp_ns`",
+            path.display()
+        );
     }
     let i_truth = col("truth_heading_deg");
     if need_truth && i_truth.is_none() {
@@ -186,12 +189,22 @@ pub fn read_csv(path: &Path, need_truth: bool) -> Result<(Vec<LogTrack>, ReadSum
             Some(_) => field(&rec, i_t),
             None => field(&rec, i_ns) * 1e-9,
         };
-        let (vn, ve, truth) = (field(&rec, Some(i_n)), field(&rec, Some(i_e)), field(&rec, i_truth));
-        if !(t.is_finite() && vn.is_finite() && ve.is_finite()) || (need_truth && !truth.is_finite()) {
+        let (vn, ve, truth) = (
+            field(&rec, Some(i_n)),
+            field(&rec, Some(i_e)),
+            field(&rec, i_truth),
+        );
+        if !(t.is_finite() && vn.is_finite() && ve.is_finite())
+            || (need_truth && !truth.is_finite())
+        {
             sum.skipped += 1;
             continue;
         }
-        let key = i_track.and_then(|i| rec.get(i)).unwrap_or("").trim().to_owned();
+        let key = i_track
+            .and_then(|i| rec.get(i))
+            .unwrap_or("")
+            .trim()
+            .to_owned();
         if tracks.last().is_none_or(|l| l.key != key) {
             tracks.push(LogTrack {
                 key,
@@ -203,7 +216,8 @@ pub fn read_csv(path: &Path, need_truth: bool) -> Result<(Vec<LogTrack>, ReadSum
         tr.t_s.push(t);
         tr.v_north.push(vn as f32);
         tr.v_east.push(ve as f32);
-        tr.speed_acc.push(if acc > 0.0 { acc as f32 } else { f32::NAN });
+        tr.speed_acc
+            .push(if acc > 0.0 { acc as f32 } else { f32::NAN });
         tr.truth_deg.push(truth as f32);
         tr.true_speed.push(field(&rec, i_speed) as f32);
         tr.receiver_course_deg.push(field(&rec, i_course) as f32);

@@ -76,6 +76,13 @@ enum Cmd {
         /// CSV log with `truth_heading_deg`: tables on it instead of the held-out data.
         #[arg(long)]
         data: Option<PathBuf>,
+        /// The Kalman filter of the tables (default: the built-in `kf`).
+        #[arg(long)]
+        kf: Option<String>,
+        /// With a stateful model: also plot heading against time (truth, atan2, kf, the
+        /// model ±σ) of the first track to this SVG file.
+        #[arg(long)]
+        plot: Option<PathBuf>,
         /// Directory for `<name>.md`, `<name>.csv`, `<name>.json` and `<name>.svg`;
         /// without it the Markdown table goes to stdout.
         #[arg(long)]
@@ -240,7 +247,11 @@ fn run(cli: Cli) -> Result<()> {
             let tracks = ghnet_lab::drive::simulate(&params, seed);
             ghnet_lab::logs::write_tracks_csv(&output, &tracks)?;
             let n: usize = tracks.iter().map(|t| t.samples.len()).sum();
-            eprintln!("wrote {} tracks, {n} epochs to {}", tracks.len(), output.display());
+            eprintln!(
+                "wrote {} tracks, {n} epochs to {}",
+                tracks.len(),
+                output.display()
+            );
         }
         Cmd::Simulate { which } => {
             let (samples, output) = match which {
@@ -278,9 +289,10 @@ fn run(cli: Cli) -> Result<()> {
             seed,
             epochs,
             ..
-        } if recipe == "ghnet-temporal" => {
-            let output = output.unwrap_or_else(|| "models/inference/weights/ghnet-temporal.safetensors".into());
-            commands::train_temporal_recipe(&output, seed, epochs)?;
+        } if recipe.starts_with("ghnet-temporal") => {
+            let output = output
+                .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
+            commands::train_temporal_recipe(&recipe, &output, seed, epochs)?;
         }
         Cmd::Train {
             recipe,
@@ -292,7 +304,7 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             let recipe = recipe.context("--recipe or --data")?;
             let mut r = Recipe::named(&recipe).with_context(|| {
-                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-full)")
+                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch)")
             })?;
             if let Some(s) = seed {
                 r.train.seed = s;
@@ -304,8 +316,15 @@ fn run(cli: Cli) -> Result<()> {
                 .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
             train_recipe(&r, &output, quiet)?;
         }
-        Cmd::Eval { model, data, .. } if data.is_some() || load(&model)?.is_stateful() => {
-            commands::eval_stream(&load(&model)?, data.as_deref())?;
+        Cmd::Eval {
+            model,
+            data,
+            kf,
+            plot,
+            ..
+        } if data.is_some() || load(&model)?.is_stateful() => {
+            let m = load(&model)?;
+            commands::eval_stream(&m, data.as_deref(), kf.as_deref(), plot.as_deref())?;
         }
         Cmd::Eval { model, out_dir, .. } => {
             let model = load(&model)?;
@@ -354,12 +373,15 @@ fn run(cli: Cli) -> Result<()> {
                 .with_context(|| format!("cannot open input {}", input.display()))?;
             let out = File::create(&output)
                 .with_context(|| format!("cannot create output {}", output.display()))?;
-            let mut p = Predictor::new(model);
-            let s = replay::run(
-                &mut p,
+            let (inp, out) = (
                 BufReader::with_capacity(1 << 16, inp),
                 BufWriter::with_capacity(1 << 16, out),
-            )
+            );
+            let s = if model.is_stateful() {
+                replay::run(&mut replay::Streams::new(model), inp, out)
+            } else {
+                replay::run(&mut Predictor::new(model), inp, out)
+            }
             .with_context(|| format!("{}", input.display()))?;
             let first = s
                 .first_invalid_row

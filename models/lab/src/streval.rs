@@ -119,7 +119,9 @@ pub fn run_atan2(tracks: &[LogTrack]) -> Answers {
         name: ATAN2.into(),
         heading_deg: tracks
             .iter()
-            .flat_map(|t| (0..t.len()).map(|i| crate::eval::atan2_heading_deg(t.v_north[i], t.v_east[i])))
+            .flat_map(|t| {
+                (0..t.len()).map(|i| crate::eval::atan2_heading_deg(t.v_north[i], t.v_east[i]))
+            })
             .collect(),
         std_deg: None,
         status: Vec::new(),
@@ -147,7 +149,9 @@ pub fn mae(a: &Answers, tracks: &[LogTrack]) -> f64 {
         .heading_deg
         .iter()
         .zip(truth)
-        .fold((0.0f64, 0usize), |(s, n), (h, t)| (s + wrap_deg(h - t).abs() as f64, n + 1));
+        .fold((0.0f64, 0usize), |(s, n), (h, t)| {
+            (s + wrap_deg(h - t).abs() as f64, n + 1)
+        });
     s / n.max(1) as f64
 }
 
@@ -155,8 +159,10 @@ pub fn mae(a: &Answers, tracks: &[LogTrack]) -> f64 {
 /// the baseline's parameters, chosen on validation data only.
 pub fn tune_kf(tracks: &[LogTrack], max_gap_s: f32) -> (f32, f32, f64) {
     let mut best = (0.0, 0.0, f64::INFINITY);
-    for q in [0.5f32, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0] {
-        for sv in [0.03f32, 0.05, 0.1, 0.2, 0.3, 0.5, 0.8] {
+    for q in [
+        0.5f32, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0,
+    ] {
+        for sv in [0.03f32, 0.05, 0.1, 0.2, 0.3, 0.5, 0.8, 1.2, 2.0, 3.0, 4.0] {
             let m = Arc::new(kf_model(q, sv, max_gap_s));
             let e = mae(&run_model(&m, tracks, "kf"), tracks);
             if e < best.2 {
@@ -227,7 +233,10 @@ fn cell(a: &Answers, truth: &[f32], idx: &[usize]) -> Cell {
 
 /// Tabulate `answers` on `tracks` per band.
 pub fn table(title: &str, tracks: &[LogTrack], answers: &[Answers]) -> Table {
-    let truth: Vec<f32> = tracks.iter().flat_map(|t| t.truth_deg.iter().copied()).collect();
+    let truth: Vec<f32> = tracks
+        .iter()
+        .flat_map(|t| t.truth_deg.iter().copied())
+        .collect();
     let true_speed = tracks
         .iter()
         .all(|t| t.true_speed.iter().all(|s| s.is_finite()));
@@ -235,7 +244,11 @@ pub fn table(title: &str, tracks: &[LogTrack], answers: &[Answers]) -> Table {
         .iter()
         .flat_map(|t| (0..t.len()).map(move |i| t.bin_speed(i)))
         .collect();
-    let stop = if true_speed { BANDS[0].1 } else { STOPPED_MEASURED };
+    let stop = if true_speed {
+        BANDS[0].1
+    } else {
+        STOPPED_MEASURED
+    };
     let mut rows = Vec::new();
     for (b, &(lo, hi)) in BANDS.iter().enumerate() {
         let (lo, hi) = match b {
@@ -276,7 +289,10 @@ pub fn table(title: &str, tracks: &[LogTrack], answers: &[Answers]) -> Table {
 pub fn to_markdown(t: &Table) -> String {
     let last = t.names.len() - 1;
     let kf = t.names.iter().position(|n| n.starts_with("kf"));
-    let mut s = format!("| {} speed [m/s] | N |", if t.true_speed { "True" } else { "Measured" });
+    let mut s = format!(
+        "| {} speed [m/s] | N |",
+        if t.true_speed { "True" } else { "Measured" }
+    );
     for n in &t.names {
         s += &format!(" MAE {n} |");
     }
@@ -299,7 +315,11 @@ pub fn to_markdown(t: &Table) -> String {
             s += &format!(" {:.1} |", gain(r.cells[k].mae_deg));
         }
         let pct = |v: Option<f64>| v.map_or("".into(), |v| format!("{:.1}", 100.0 * v));
-        s += &format!(" {} | {} |\n", pct(r.cells[last].within_1sigma), pct(r.cells[last].within_2sigma));
+        s += &format!(
+            " {} | {} |\n",
+            pct(r.cells[last].within_1sigma),
+            pct(r.cells[last].within_2sigma)
+        );
     }
     s
 }

@@ -29,9 +29,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use ghnet_models::head::{wrap_rad, Head};
+use ghnet_models::head::{wrap_rad, Head, KalmanBase};
 use ghnet_models::params::{Arch, ParamSet};
-use ghnet_models::stream::{inputs, Epoch, StepState, StreamPredictor, INPUTS};
+use ghnet_models::stream::{inputs, kalman_base, Epoch, StepState, StreamPredictor, INPUTS};
 use ghnet_models::weights::{ModelKind, ModelMeta, FORMAT};
 use ghnet_models::Model;
 
@@ -103,25 +103,34 @@ pub struct Recorded {
     pub course: Vec<f32>,
     /// Previous heading the step starts from (the course on a history's first epoch).
     pub prior: Vec<f32>,
+    /// The Kalman step the network corrects.
+    pub base: Vec<KalmanBase>,
     /// True heading, degrees.
     pub truth: Vec<f32>,
     /// Window slots holding this history's epochs (1 on a history's first epoch).
     pub filled: Vec<u8>,
+    /// Whether the course is opposite to the true heading, when clear
+    /// ([`crate::loss::reverse_label`]).
+    pub reverse: Vec<Option<bool>>,
     /// Start offset of each track; the last entry is the total.
     pub starts: Vec<usize>,
 }
 
-/// Run `model` over `tracks` as a stream, recording what each step saw. With `perturb`,
-/// the previous heading jumps to a random one with that probability per epoch.
+/// Run `model` over `tracks` as a stream, recording what each step saw, with the Kalman
+/// step of `kind` (the model's own kind when `None`: a run of the Kalman filter records
+/// for the temporal model it teaches). With `perturb`, the previous heading jumps to a
+/// random one with that probability per epoch.
 pub fn record(
     model: &Arc<Model>,
     tracks: &[LogTrack],
     window: usize,
     max_gap_s: f32,
+    kind: Option<ModelKind>,
     mut perturb: Option<(&mut ChaCha8Rng, f64)>,
 ) -> Recorded {
     let mut rec = Recorded::default();
     let mut sp = StreamPredictor::new(model.clone());
+    let kind = &kind.unwrap_or(model.meta().kind);
     for t in tracks {
         rec.starts.push(rec.x.len());
         let mut h = sp.history().with_max_gap(max_gap_s as f64);
@@ -158,10 +167,19 @@ pub fn record(
                 f32::NAN
             };
             let course = e.v_east.atan2(e.v_north);
-            rec.x.push(inputs(&state, e.v_north, e.v_east, acc, dt));
+            let base = kalman_base(kind, &state, e.v_north, e.v_east, dt);
+            rec.base.push(base);
+            rec.x
+                .push(inputs(&state, e.v_north, e.v_east, acc, dt, &base));
             rec.course.push(course);
-            rec.prior.push(if state.has_prior { state.psi } else { course });
+            rec.prior
+                .push(if state.has_prior { state.psi } else { course });
             rec.truth.push(t.truth_deg[i]);
+            rec.reverse.push(crate::loss::reverse_label(
+                e.v_north,
+                e.v_east,
+                t.truth_deg[i],
+            ));
             rec.filled.push((pos + 1).min(window) as u8);
         }
     }
@@ -184,14 +202,23 @@ pub fn stream_errors(model: &Arc<Model>, tracks: &[LogTrack]) -> (Vec<f32>, Vec<
             };
             let p = sp.predict(&mut h, &e);
             errs.push(wrap_rad((p.heading_deg - t.truth_deg[i]).to_radians()));
-            sig.push(h.state().log_sigma.exp());
+            // The reported σ over the model's calibration: the raw σ to calibrate.
+            sig.push((p.std_deg / model.meta().sigma_scale).to_radians());
         }
     }
     (errs, sig)
 }
 
 /// The model file's metadata for a temporal network.
-pub fn temporal_meta(name: &str, arch: Arch, cfg: &TemporalConfig) -> ModelMeta {
+pub fn temporal_meta(name: &str, arch: Arch, cfg: &TemporalConfig, kf: &Model) -> ModelMeta {
+    let ModelKind::Kf {
+        q_deg_per_sqrt_s,
+        sigma_v_mps,
+        ..
+    } = kf.meta().kind
+    else {
+        panic!("the Kalman step comes from a kf model")
+    };
     ModelMeta {
         format: FORMAT.into(),
         name: name.into(),
@@ -207,6 +234,8 @@ pub fn temporal_meta(name: &str, arch: Arch, cfg: &TemporalConfig) -> ModelMeta 
         metrics: serde_json::Value::Null,
         kind: ModelKind::Temporal {
             max_gap_s: cfg.max_gap_s,
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
         },
     }
 }
@@ -253,7 +282,11 @@ struct Batch {
 
 impl Batch {
     fn new(arch: &Arch, cols: usize) -> Self {
-        let fc: Vec<Mat<f32>> = arch.fc_dims().iter().map(|&(_, o)| Mat::zeros(o, cols)).collect();
+        let fc: Vec<Mat<f32>> = arch
+            .fc_dims()
+            .iter()
+            .map(|&(_, o)| Mat::zeros(o, cols))
+            .collect();
         let gin = arch.fc_dims()[0].0;
         Self {
             stack: ConvStack::new(arch, cols),
@@ -307,25 +340,36 @@ fn step(
     }
     for l in 0..b.fc.len() {
         let (done, todo) = b.fc.split_at_mut(l);
-        let input = if l == 0 { b.g.as_ref() } else { done[l - 1].as_ref() };
-        fc_forward(params, l + 1, input.subcols(0, nt), todo[0].as_mut().subcols_mut(0, nt));
+        let input = if l == 0 {
+            b.g.as_ref()
+        } else {
+            done[l - 1].as_ref()
+        };
+        fc_forward(
+            params,
+            l + 1,
+            input.subcols(0, nt),
+            todo[0].as_mut().subcols_mut(0, nt),
+        );
     }
     let mut loss = 0.0f64;
     let out = b.fc.last().expect("fc");
-    let mut dy = [0.0f32; 4];
+    let mut dy = [0.0f32; 3];
     for (n, &(_, i, _)) in b.targets.iter().enumerate() {
-        let y = [out[(0, n)], out[(1, n)], out[(2, n)], out[(3, n)]];
+        let y = [out[(0, n)], out[(1, n)], out[(2, n)]];
         let (l, _, _) = crate::loss::filter_loss(
             &y,
             rec.course[i],
             rec.prior[i],
+            &rec.base[i],
             rec.truth[i],
+            rec.reverse[i],
             cfg.sigma_weight,
             &mut dy,
         );
         loss += l as f64;
-        for k in 0..4 {
-            b.dy[(k, n)] = dy[k] / nt as f32;
+        for (k, d) in dy.iter().enumerate() {
+            b.dy[(k, n)] = d / nt as f32;
         }
     }
     backward(b, params, nt, w, c, grads);
@@ -335,7 +379,10 @@ fn step(
 /// Back through the fc layers, the gather, and the convolution stack.
 fn backward(b: &mut Batch, params: &ParamSet, nt: usize, w: usize, c: usize, grads: &mut [f32]) {
     let n_fc = b.fc.len();
-    b.dfc[n_fc - 1].as_mut().subcols_mut(0, nt).copy_from(b.dy.as_ref().subcols(0, nt));
+    b.dfc[n_fc - 1]
+        .as_mut()
+        .subcols_mut(0, nt)
+        .copy_from(b.dy.as_ref().subcols(0, nt));
     for l in (0..n_fc).rev() {
         let (dprev, dcur) = b.dfc.split_at_mut(l);
         let (input, dx) = if l == 0 {
@@ -400,23 +447,33 @@ pub fn train(
     mut progress: impl FnMut(usize, f32, f32, f32),
 ) -> Result<TrainedTemporal> {
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let arch = Arch::temporal(INPUTS, cfg.window, 4);
+    let arch = Arch::temporal(INPUTS, cfg.window, 3);
     let mut params = match init {
         Some(m) if m.params().arch() == &arch => m.params().clone(),
-        Some(m) => bail!("--init {}: not a temporal model with window {}", m.name(), cfg.window),
+        Some(m) => bail!(
+            "--init {}: not a temporal model with window {}",
+            m.name(),
+            cfg.window
+        ),
         None => {
             let mut p = ParamSet::init(&arch, |b| rng.random_range(-b..b));
             p.get_mut("fc4.bias")
                 .copy_from_slice(&crate::loss::initial_bias(&Head::Filter));
+            // Zero output weights: the untrained model is exactly the Kalman filter, and
+            // training moves away from it only where that lowers the error.
+            p.get_mut("fc4.weight").fill(0.0);
             p
         }
     };
     let cols = cfg.tile_len + cfg.window - 1;
-    let kf_rec = record(kf, train, cfg.window, cfg.max_gap_s, None);
+    let meta = temporal_meta(name, arch.clone(), cfg, kf);
+    let kf_rec = record(kf, train, cfg.window, cfg.max_gap_s, Some(meta.kind), None);
     if tiles(&kf_rec, cols, cfg.tile_len, &mut rng.clone()).len() < cfg.tiles {
-        bail!("too little training data: fewer than {} runs of {cols} epochs", cfg.tiles);
+        bail!(
+            "too little training data: fewer than {} runs of {cols} epochs",
+            cfg.tiles
+        );
     }
-    let mut meta = temporal_meta(name, arch.clone(), cfg);
     let mut batch = Batch::new(&arch, cfg.tiles * cols);
     let mut grads = vec![0.0f32; params.data().len()];
     let mut opt = AdamW::new(&params, cfg.weight_decay);
@@ -430,14 +487,7 @@ pub fn train(
             kf_rec.clone()
         } else {
             let model = Arc::new(Model::new(params.clone(), meta.clone()));
-            let own = record(
-                &model,
-                train,
-                cfg.window,
-                cfg.max_gap_s,
-                Some((&mut rng, cfg.p_perturb)),
-            );
-            mix(&kf_rec, &own, cfg.kf_share, &mut rng)
+            own_priors(&model, train, &kf_rec, cfg, &mut rng)
         };
         let all = tiles(&rec, cols, cfg.tile_len, &mut rng);
         let mut loss = (0.0f64, 0usize);
@@ -445,7 +495,11 @@ pub fn train(
             batch.stack.sample_dropout(cfg.dropout, &mut rng);
             let (l, n) = step(&mut batch, &mut params, &rec, chunk, cfg, &mut grads);
             loss = (loss.0 + l, loss.1 + n);
-            opt.step(params.data_mut(), &grads, schedule(cfg.lr, step_no, steps_per_epoch, total));
+            opt.step(
+                params.data_mut(),
+                &grads,
+                schedule(cfg.lr, step_no, steps_per_epoch, total),
+            );
             step_no += 1;
         }
         let model = Arc::new(Model::new(params.clone(), meta.clone()));
@@ -459,16 +513,41 @@ pub fn train(
             break;
         }
     }
-    let params = best.expect("at least one epoch");
-    let raw = Arc::new(Model::new(params.clone(), meta.clone()));
-    let (errs, sig) = stream_errors(&raw, val);
-    meta.sigma_scale = fit_sigma_scale(&errs, &sig);
     Ok(TrainedTemporal {
-        model: Model::new(params, meta),
+        model: calibrated(best.expect("at least one epoch"), meta, val),
         best_epoch,
         best_val_mae_deg: best_mae,
         epochs_run,
     })
+}
+
+/// The model with σ scaled so that 68.3% of its streamed validation errors fall within
+/// 1σ.
+fn calibrated(params: ParamSet, mut meta: ModelMeta, val: &[LogTrack]) -> Model {
+    let raw = Arc::new(Model::new(params.clone(), meta.clone()));
+    let (errs, sig) = stream_errors(&raw, val);
+    meta.sigma_scale = fit_sigma_scale(&errs, &sig);
+    Model::new(params, meta)
+}
+
+/// The network's own recorded priors (with perturbations), a share of tracks swapped
+/// for the Kalman filter's.
+fn own_priors(
+    model: &Arc<Model>,
+    train: &[LogTrack],
+    kf_rec: &Recorded,
+    cfg: &TemporalConfig,
+    rng: &mut ChaCha8Rng,
+) -> Recorded {
+    let own = record(
+        model,
+        train,
+        cfg.window,
+        cfg.max_gap_s,
+        None,
+        Some((&mut *rng, cfg.p_perturb)),
+    );
+    mix(kf_rec, &own, cfg.kf_share, rng)
 }
 
 /// Per track, the Kalman filter's recording with probability `kf_share`, else the
@@ -480,6 +559,7 @@ fn mix(kf: &Recorded, own: &Recorded, kf_share: f64, rng: &mut ChaCha8Rng) -> Re
             for i in w[0]..w[1] {
                 out.x[i] = kf.x[i];
                 out.prior[i] = kf.prior[i];
+                out.base[i] = kf.base[i];
                 out.filled[i] = kf.filled[i];
             }
         }

@@ -42,6 +42,22 @@ impl TemporalRecipe {
         }
     }
 
+    /// A temporal recipe by model name: `ghnet-temporal` (cars and turn-in-place
+    /// platforms, 70/30), `ghnet-temporal-car` (cars only), `ghnet-temporal-tip`
+    /// (turn-in-place platforms only), for measuring what one model for both costs.
+    pub fn named(name: &str) -> Option<Self> {
+        let share = match name {
+            "ghnet-temporal" => DriveParams::default().platform_share,
+            "ghnet-temporal-car" => 0.0,
+            "ghnet-temporal-tip" => 1.0,
+            _ => return None,
+        };
+        let mut r = Self::shipped();
+        r.name = name.into();
+        r.data.platform_share = share;
+        Some(r)
+    }
+
     /// Simulated tracks by split.
     pub fn tracks(&self) -> [Vec<LogTrack>; 3] {
         split_tracks(&drive::simulate(&self.data, self.seed))
@@ -78,7 +94,7 @@ pub fn tuned_kf(val: &[LogTrack], max_gap_s: f32) -> (Model, f64) {
         meta.training = serde_json::json!({
             "tuned_on": "validation tracks of the ghnet-temporal recipe (simulated drives)",
             "val_mae_deg": mae,
-            "grid": "q in 0.5..30 deg/sqrt(s), sigma_v in 0.03..0.8 m/s",
+            "grid": "q in 0.5..120 deg/sqrt(s), sigma_v in 0.03..4 m/s",
         });
         meta
     };
@@ -98,7 +114,11 @@ pub fn train_logged(
     let t0 = std::time::Instant::now();
     let n: usize = tr.iter().map(LogTrack::len).sum();
     let nv: usize = va.iter().map(LogTrack::len).sum();
-    eprintln!("{name}: {} training tracks ({n} epochs), {} validation ({nv})", tr.len(), va.len());
+    eprintln!(
+        "{name}: {} training tracks ({n} epochs), {} validation ({nv})",
+        tr.len(),
+        va.len()
+    );
     temporal::train(name, tr, va, kf, init, cfg, |e, loss, mae, best| {
         eprintln!(
             "epoch {e} loss {loss:.4} val MAE {mae:.3}° best {best:.3}° ({:.0} s)",
@@ -108,19 +128,33 @@ pub fn train_logged(
 }
 
 /// The tables of `model` against the baselines on `tracks` (one per platform present
-/// and one for all).
-pub fn tables(model: &Arc<Model>, kf: &Arc<Model>, tracks: &[LogTrack], what: &str) -> Vec<Table> {
-    let mut groups: Vec<(String, Vec<LogTrack>)> = Vec::new();
-    for (p, label) in [(Platform::Car, "cars"), (Platform::TurnInPlace, "turn-in-place platforms")] {
+/// and one for all). `kf` is the filter of every table, except the turn-in-place table
+/// when `kf_platform` (a filter tuned on such platforms) is given.
+pub fn tables(
+    model: &Arc<Model>,
+    kf: &Arc<Model>,
+    kf_platform: Option<&Arc<Model>>,
+    tracks: &[LogTrack],
+    what: &str,
+) -> Vec<Table> {
+    let mut groups: Vec<(String, Vec<LogTrack>, &Arc<Model>)> = Vec::new();
+    for (p, label) in [
+        (Platform::Car, "cars"),
+        (Platform::TurnInPlace, "turn-in-place platforms"),
+    ] {
         let g = only(tracks, p);
         if !g.is_empty() && g.len() < tracks.len() {
-            groups.push((format!("{what}, {label}"), g));
+            let f = match p {
+                Platform::TurnInPlace => kf_platform.unwrap_or(kf),
+                Platform::Car => kf,
+            };
+            groups.push((format!("{what}, {label}"), g, f));
         }
     }
-    groups.push((what.to_owned(), tracks.to_vec()));
+    groups.push((what.to_owned(), tracks.to_vec(), kf));
     groups
         .into_iter()
-        .map(|(title, g)| {
+        .map(|(title, g, kf)| {
             let mut answers = vec![streval::run_atan2(&g)];
             answers.extend(streval::run_receiver(&g));
             answers.push(streval::run_model(kf, &g, "kf"));
@@ -131,12 +165,20 @@ pub fn tables(model: &Arc<Model>, kf: &Arc<Model>, tracks: &[LogTrack], what: &s
 }
 
 /// Read several logs with truth and split them by time for training.
-pub fn read_logs(paths: &[impl AsRef<Path>], val_fraction: f64) -> Result<(Vec<LogTrack>, Vec<LogTrack>)> {
+pub fn read_logs(
+    paths: &[impl AsRef<Path>],
+    val_fraction: f64,
+) -> Result<(Vec<LogTrack>, Vec<LogTrack>)> {
     let mut all = Vec::new();
     for p in paths {
         let (t, s) = logs::read_csv(p.as_ref(), true)?;
         if s.skipped > 0 {
-            eprintln!("{}: skipped {} of {} rows", p.as_ref().display(), s.skipped, s.rows);
+            eprintln!(
+                "{}: skipped {} of {} rows",
+                p.as_ref().display(),
+                s.skipped,
+                s.rows
+            );
         }
         all.extend(t);
     }
