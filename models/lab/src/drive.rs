@@ -563,7 +563,7 @@ mod tests {
             rates_hz: vec![10],
             ..DriveParams::default()
         };
-        let (_, _, car) = simulate_track(&p, Platform::Car, 1500.0, &mut rng);
+        let (_, _, car) = simulate_track(&p, Platform::Car, 3600.0, &mut rng);
         let stopped = car.iter().filter(|s| s.true_speed < 0.05).count() as f64;
         assert!(stopped / car.len() as f64 > 0.15, "stopped share");
         assert!(car.iter().any(|s| s.reversing));
