@@ -304,7 +304,7 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             let recipe = recipe.context("--recipe or --data")?;
             let mut r = Recipe::named(&recipe).with_context(|| {
-                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch)")
+                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch, ghnet-temporal, ghnet-temporal-mixed, ghnet-temporal-tip)")
             })?;
             if let Some(s) = seed {
                 r.train.seed = s;

@@ -78,7 +78,7 @@ impl Default for TemporalConfig {
         Self {
             window: 8,
             max_gap_s: 10.0,
-            epochs: 40,
+            epochs: 6,
             tiles: 16,
             tile_len: 64,
             lr: 2e-3,

@@ -42,9 +42,10 @@ impl TemporalRecipe {
         }
     }
 
-    /// A temporal recipe by model name: `ghnet-temporal` (cars and turn-in-place
-    /// platforms, 70/30), `ghnet-temporal-car` (cars only), `ghnet-temporal-tip`
-    /// (turn-in-place platforms only), for measuring what one model for both costs.
+    /// A temporal recipe by model name: `ghnet-temporal` (the shipped default: cars and
+    /// turn-in-place platforms, 70/30, one model for both), `ghnet-temporal-car` (cars
+    /// only) and `ghnet-temporal-tip` (turn-in-place platforms only), for measuring what
+    /// one model for both costs.
     pub fn named(name: &str) -> Option<Self> {
         let share = match name {
             "ghnet-temporal" => DriveParams::default().platform_share,
