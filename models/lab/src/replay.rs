@@ -73,6 +73,30 @@ struct Columns {
     track: Option<usize>,
 }
 
+impl Columns {
+    /// The columns of `header`; an error when a required one is missing or an output
+    /// column already exists.
+    fn find(header: &csv::ByteRecord) -> Result<Self, InferError> {
+        // Spaces around a name (`v_north, v_east`) are a common hand-edit; accept them.
+        let find = |name: &'static str| {
+            header
+                .iter()
+                .position(|h| h.trim_ascii() == name.as_bytes())
+        };
+        if let Some(c) = OUTPUT_COLUMNS.into_iter().find(|c| find(c).is_some()) {
+            return Err(InferError::DuplicateColumn(c));
+        }
+        Ok(Columns {
+            v_north: find("v_north").ok_or(InferError::MissingColumn("v_north"))?,
+            v_east: find("v_east").ok_or(InferError::MissingColumn("v_east"))?,
+            speed_acc: find("speed_acc"),
+            t_s: find("t_s"),
+            timestamp_ns: find("timestamp_ns"),
+            track: find("track"),
+        })
+    }
+}
+
 impl Rows {
     fn clear(&mut self) {
         self.v_north.clear();
@@ -238,27 +262,7 @@ pub fn run(
         .from_reader(input);
     let mut wtr = csv::WriterBuilder::new().flexible(true).from_writer(output);
     let header = rdr.byte_headers()?.clone();
-    // Spaces around a name (`v_north, v_east`) are a common hand-edit; accept them.
-    let find = |name: &'static str| {
-        header
-            .iter()
-            .position(|h| h.trim_ascii() == name.as_bytes())
-    };
-    let i_n = find("v_north").ok_or(InferError::MissingColumn("v_north"))?;
-    let i_e = find("v_east").ok_or(InferError::MissingColumn("v_east"))?;
-    let cols = Columns {
-        v_north: i_n,
-        v_east: i_e,
-        speed_acc: find("speed_acc"),
-        t_s: find("t_s"),
-        timestamp_ns: find("timestamp_ns"),
-        track: find("track"),
-    };
-    for c in OUTPUT_COLUMNS {
-        if find(c).is_some() {
-            return Err(InferError::DuplicateColumn(c));
-        }
-    }
+    let cols = Columns::find(&header)?;
     let mut out_header = header.clone();
     OUTPUT_COLUMNS
         .iter()

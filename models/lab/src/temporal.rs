@@ -448,23 +448,7 @@ pub fn train(
 ) -> Result<TrainedTemporal> {
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let arch = Arch::temporal(INPUTS, cfg.window, 3);
-    let mut params = match init {
-        Some(m) if m.params().arch() == &arch => m.params().clone(),
-        Some(m) => bail!(
-            "--init {}: not a temporal model with window {}",
-            m.name(),
-            cfg.window
-        ),
-        None => {
-            let mut p = ParamSet::init(&arch, |b| rng.random_range(-b..b));
-            p.get_mut("fc4.bias")
-                .copy_from_slice(&crate::loss::initial_bias(&Head::Filter));
-            // Zero output weights: the untrained model is exactly the Kalman filter, and
-            // training moves away from it only where that lowers the error.
-            p.get_mut("fc4.weight").fill(0.0);
-            p
-        }
-    };
+    let mut params = initial_params(init, &arch, cfg, &mut rng)?;
     let cols = cfg.tile_len + cfg.window - 1;
     let meta = temporal_meta(name, arch.clone(), cfg, kf);
     let kf_rec = record(kf, train, cfg.window, cfg.max_gap_s, Some(meta.kind), None);
@@ -548,6 +532,32 @@ fn own_priors(
         Some((&mut *rng, cfg.p_perturb)),
     );
     mix(kf_rec, &own, cfg.kf_share, rng)
+}
+
+/// Weights to start from: `init`'s (fine-tuning), or random ones with a zero output
+/// layer, so that the untrained model is exactly the Kalman filter and training moves
+/// away from it only where that lowers the error.
+fn initial_params(
+    init: Option<&Model>,
+    arch: &Arch,
+    cfg: &TemporalConfig,
+    rng: &mut ChaCha8Rng,
+) -> Result<ParamSet> {
+    Ok(match init {
+        Some(m) if m.params().arch() == arch => m.params().clone(),
+        Some(m) => bail!(
+            "--init {}: not a temporal model with window {}",
+            m.name(),
+            cfg.window
+        ),
+        None => {
+            let mut p = ParamSet::init(arch, |b| rng.random_range(-b..b));
+            p.get_mut("fc4.bias")
+                .copy_from_slice(&crate::loss::initial_bias(&Head::Filter));
+            p.get_mut("fc4.weight").fill(0.0);
+            p
+        }
+    })
 }
 
 /// Per track, the Kalman filter's recording with probability `kf_share`, else the
