@@ -333,6 +333,13 @@ impl History {
         self.clear(Reset::Explicit);
     }
 
+    /// Clear the history for a reason the caller detected itself, counted as `why`:
+    /// ghnetd answers a sample whose time went backwards `InvalidInput` without showing
+    /// it to the model, and clears the history with [`Reset::Backwards`] here.
+    pub fn reset_because(&mut self, why: Reset) {
+        self.clear(why);
+    }
+
     /// Resets so far, by cause.
     pub fn resets(&self) -> ResetCounts {
         self.resets
