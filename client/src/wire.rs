@@ -158,6 +158,12 @@ pub enum HeadingStatus {
     /// Consumers that match answers to samples skip it; a filter stops trusting the
     /// last heading. When samples come again they are answered normally.
     Stale = 4,
+    /// The vehicle is stopped and the heading is the one it had when it stopped, kept
+    /// from this source's history (temporal models only): a car does not turn while
+    /// standing, so the last moving heading stays the best estimate. `heading_std_deg`
+    /// grows with the time stopped; use it with that σ. Clients built before this
+    /// status existed see an unknown value and treat it as not `Ok`.
+    Held = 5,
 }
 
 impl HeadingStatus {
@@ -170,6 +176,7 @@ impl HeadingStatus {
             2 => Self::Stationary,
             3 => Self::InvalidInput,
             4 => Self::Stale,
+            5 => Self::Held,
             _ => return None,
         })
     }

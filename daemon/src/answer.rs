@@ -313,6 +313,7 @@ fn wire_status(s: Status) -> HeadingStatus {
         Status::LowSpeed => HeadingStatus::LowSpeed,
         Status::Stationary => HeadingStatus::Stationary,
         Status::Invalid => HeadingStatus::InvalidInput,
+        Status::Held => HeadingStatus::Held,
     }
 }
 
