@@ -426,10 +426,12 @@ mod tests {
             HeadingStatus::Stationary,
             HeadingStatus::InvalidInput,
             HeadingStatus::Stale,
+            HeadingStatus::Held,
         ] {
             assert_eq!(HeadingStatus::from_u32(s.as_u32()), Some(s));
         }
-        assert_eq!(HeadingStatus::from_u32(5), None);
+        assert_eq!(HeadingStatus::Held.as_u32(), 5);
+        assert_eq!(HeadingStatus::from_u32(6), None);
         assert_eq!(HeadingStatus::from_u32(u32::MAX), None);
     }
 
