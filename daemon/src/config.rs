@@ -1,7 +1,7 @@
 //! Configuration: built-in defaults, then a TOML file, then command-line flags.
 //!
 //! The file is optional; with none, `ghnetd` serves discovered sources with the
-//! embedded `ghnet-full` model. Unknown keys are errors (a typo must not silently fall
+//! embedded default model. Unknown keys are errors (a typo must not silently fall
 //! back to a default). `ghnetd --print-config` prints the effective result, and
 //! `daemon/ghnetd.example.toml` is tested to equal the defaults.
 
@@ -177,7 +177,7 @@ impl SourcesSection {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ModelSection {
-    /// A built-in model (`ghnet-full`, `paper-s1`) or a path to a `.safetensors` file
+    /// A built-in model (`ghnet-epoch`, `ghnet-temporal`, `kf`, `paper-s1`) or a path to a `.safetensors` file
     /// (relative to the working directory).
     pub name: String,
     /// Below this horizontal speed (m/s) the status is `Stationary`.
@@ -205,7 +205,7 @@ impl Default for ModelSection {
 impl ModelSection {
     fn validate(&self) -> anyhow::Result<()> {
         if self.name.trim().is_empty() {
-            bail!("model.name: empty; use a built-in name (ghnet-full, paper-s1) or a .safetensors path");
+            bail!("model.name: empty; use a built-in name (ghnet-epoch, ghnet-temporal, kf, paper-s1) or a .safetensors path");
         }
         for (key, v) in [
             ("model.stationary_speed", self.stationary_speed),

@@ -311,11 +311,13 @@ impl ZenohSide {
     }
 
     /// Records a change of the set of sources: `source` is served from now on (or no
-    /// longer, `served: false`), with `state` as it is. Waits for the lock: a change is
-    /// rare, and must not be lost.
-    pub(crate) fn set_served(&self, source: &str, state: &State, served: bool) {
+    /// longer, `served: false`), with `state` as it is, and the add/remove totals that
+    /// include this change, under one lock so that no query sees one without the other.
+    /// Waits for the lock: a change is rare, and must not be lost.
+    pub(crate) fn set_served(&self, source: &str, state: &State, served: bool, totals: (u64, u64)) {
         let mut shared = self.shared.lock().unwrap_or_else(|e| e.into_inner());
         shared.write(source, state, served);
+        (shared.sources_added, shared.sources_removed) = totals;
     }
 
     /// Records the sources that cannot be served (name → reason) and the add/remove

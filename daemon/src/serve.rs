@@ -469,10 +469,15 @@ impl Daemon {
                 .entry(s.name.clone())
                 .or_default()
                 .add(&s.counters());
-            if let Some(z) = &self.zenoh {
-                z.set_served(&s.name, &s.state.borrow(), false);
-            }
             self.removed += 1;
+            if let Some(z) = &self.zenoh {
+                z.set_served(
+                    &s.name,
+                    &s.state.borrow(),
+                    false,
+                    (self.added, self.removed),
+                );
+            }
         }
         for name in changes.add {
             match self.open_source(&name, Kind::Discovered) {
@@ -511,10 +516,15 @@ impl Daemon {
         // Its counters live on in the source now.
         self.retired.remove(&source.name);
         self.unserved.remove(&source.name);
-        if let Some(z) = &self.zenoh {
-            z.set_served(&source.name, &source.state.borrow(), true);
-        }
         self.added += 1;
+        if let Some(z) = &self.zenoh {
+            z.set_served(
+                &source.name,
+                &source.state.borrow(),
+                true,
+                (self.added, self.removed),
+            );
+        }
         sources.push(source);
     }
 

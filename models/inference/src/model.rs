@@ -44,8 +44,10 @@ fn resolve(name: &str) -> &str {
         .map_or(name, |(_, m)| *m)
 }
 
-/// Name of the default model.
-pub const DEFAULT_MODEL: &str = "ghnet-temporal";
+/// Name of the default model. The per-epoch `ghnet-epoch` until ghnetd keeps a history
+/// per source (a stateful model answered without one would treat every sample as the
+/// first of a track).
+pub const DEFAULT_MODEL: &str = "ghnet-epoch";
 
 /// Why a model could not be had.
 #[derive(Debug, thiserror::Error)]

@@ -146,7 +146,7 @@ fn committed_reports_meet_the_accuracy_bars() {
 #[test]
 fn temporal_model_reproduces_its_committed_numbers() {
     use ghnet_lab::timeline::{self, TemporalRecipe};
-    let model = Arc::new(Model::builtin(ghnet_models::DEFAULT_MODEL).expect("default loads"));
+    let model = Arc::new(Model::builtin("ghnet-temporal").expect("ghnet-temporal loads"));
     assert!(model.is_stateful());
     let kf = Arc::new(Model::builtin("kf").expect("kf loads"));
     let r: TemporalRecipe = serde_json::from_value(model.meta().training_data.clone()).unwrap();
