@@ -103,12 +103,12 @@ pub enum OpenError {
         #[source]
         source: BoxError,
     },
-    /// A service limit is reached (all publisher, subscriber or node slots in use), or
-    /// the service exists with smaller limits than this process asks for. The message
-    /// names the ghnetd config key to raise (`ipc.max_publishers`,
-    /// `ipc.max_subscribers`, `ipc.max_nodes`, `ipc.subscriber_buffer`; in Rust
-    /// clients the same fields of [`ServiceSettings`](crate::ServiceSettings) via
-    /// [`IpcConfig::with_settings`]). Every process must use the same limits.
+    /// A service limit is reached: all publisher, subscriber or node slots of the
+    /// service are in use. The message names the ghnetd config key to raise
+    /// (`ipc.max_publishers`, `ipc.max_subscribers`, `ipc.max_nodes`,
+    /// `ipc.subscriber_buffer`; in Rust clients the same fields of
+    /// [`ServiceSettings`](crate::ServiceSettings) via [`IpcConfig::with_settings`]).
+    /// Every process must use the same limits.
     #[error("service `{service}`: {problem} ({key})")]
     Limit {
         /// Full service name.
@@ -117,6 +117,21 @@ pub enum OpenError {
         problem: String,
         /// The setting to raise, e.g. `ipc.max_subscribers`.
         key: &'static str,
+    },
+    /// The service exists with smaller limits than this process asks for: another
+    /// process created it with other settings. Names *every* setting that is smaller,
+    /// so that one change fixes them all; the fix is the same values in every process
+    /// of the deployment.
+    #[error(
+        "service `{service}`: exists with smaller limits than this process asks for \
+         (every process must use the same): {}",
+        SettingMismatch::list(.settings)
+    )]
+    Mismatch {
+        /// Full service name.
+        service: String,
+        /// The settings below what this process asks for, at least one.
+        settings: Vec<SettingMismatch>,
     },
     /// The port could not be created for another reason (out of memory, resources of
     /// the service missing or inaccessible).
@@ -130,6 +145,43 @@ pub enum OpenError {
         #[source]
         source: BoxError,
     },
+}
+
+/// One setting of an existing service below what this process asks for (see
+/// [`OpenError::Mismatch`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SettingMismatch {
+    /// The setting, named by its ghnetd config key, e.g. `ipc.max_subscribers` (Rust
+    /// clients: the same field of [`ServiceSettings`](crate::ServiceSettings)).
+    pub key: &'static str,
+    /// What it limits, e.g. `subscriber slots`.
+    pub what: &'static str,
+    /// What this process asks for.
+    pub asked: usize,
+    /// What the service was created with.
+    pub created: usize,
+}
+
+impl std::fmt::Display for SettingMismatch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let Self {
+            key,
+            what,
+            asked,
+            created,
+        } = self;
+        write!(
+            f,
+            "fewer {what} than the {asked} asked, created with {created} ({key})"
+        )
+    }
+}
+
+impl SettingMismatch {
+    fn list(settings: &[SettingMismatch]) -> String {
+        let items: Vec<String> = settings.iter().map(ToString::to_string).collect();
+        items.join("; ")
+    }
 }
 
 /// Sending failed.
@@ -187,39 +239,48 @@ fn create_node(ipc: &IpcConfig, role: &str) -> Result<Node<ipc::Service>, OpenEr
 /// The service pair both endpoint kinds hold; the factories keep the services alive
 /// for as long as this process uses them.
 struct Pair<T: Message> {
+    // Field order is drop order: the services before the node they were opened on.
     name: String,
     pubsub: PubSubFactory<T>,
     event: EventFactory,
+    /// The endpoint's own node (`new`); `None` on a caller's node (`with_node`).
+    _node: Option<Node<ipc::Service>>,
 }
 
 impl<T: Message> Pair<T> {
+    /// Opens the pair on a node of its own, named after `role` for `iox2 node list`.
+    fn open_own(ipc: &IpcConfig, source: &str, role: &str) -> Result<Self, OpenError> {
+        validate_source_name(source)?;
+        let node = create_node(ipc, &format!("{}-{role}", T::SERVICE_SUFFIX))?;
+        let mut pair = Self::open(&node, ipc, source)?;
+        pair._node = Some(node);
+        Ok(pair)
+    }
+
     fn open(node: &Node<ipc::Service>, ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
         let name = service_name_for::<T>(ipc, source)?;
-        // Names passing our validation always fit iceoryx2's rules (tested in names.rs).
-        let service_name = ServiceName::new(&name).map_err(|e| OpenError::Service {
+        let service_error = |pattern, e: BoxError| OpenError::Service {
             service: name.clone(),
-            pattern: "publish-subscribe",
-            source: Box::new(e),
-        })?;
+            pattern,
+            source: e,
+        };
+        // Names passing our validation always fit iceoryx2's rules (tested in names.rs).
+        let service_name =
+            ServiceName::new(&name).map_err(|e| service_error("publish-subscribe", Box::new(e)))?;
         let settings = ipc.settings();
         let pubsub = open_pubsub::<T>(node, &service_name, settings).map_err(|e| {
-            limits::pubsub_open(&name, settings, &e).unwrap_or_else(|| OpenError::Service {
-                service: name.clone(),
-                pattern: "publish-subscribe",
-                source: Box::new(e),
-            })
+            limits::pubsub_open::<T>(node, &service_name, settings, &e)
+                .unwrap_or_else(|| service_error("publish-subscribe", Box::new(e)))
         })?;
         let event = open_event(node, &service_name, settings).map_err(|e| {
-            limits::event_open(&name, settings, &e).unwrap_or_else(|| OpenError::Service {
-                service: name.clone(),
-                pattern: "event",
-                source: Box::new(e),
-            })
+            limits::event_open::<T>(node, &service_name, settings, &e)
+                .unwrap_or_else(|| service_error("event", Box::new(e)))
         })?;
         Ok(Self {
             name,
             pubsub,
             event,
+            _node: None,
         })
     }
 
@@ -240,11 +301,10 @@ impl<T: Message> Pair<T> {
 /// Publishing end of a ghnet service pair; see [`VelocityPublisher`] and
 /// [`HeadingPublisher`].
 pub struct Sender<T: Message> {
-    // Field order is drop order: ports before the services before the node.
+    // Field order is drop order: ports before the services and node.
     publisher: Publisher<ipc::Service, T, ()>,
     notifier: Notifier<ipc::Service>,
     pair: Pair<T>,
-    _node: Option<Node<ipc::Service>>,
 }
 
 impl<T: Message> Sender<T> {
@@ -252,11 +312,7 @@ impl<T: Message> Sender<T> {
     /// (order against the other side does not matter) and creates a publisher and a
     /// notifier on it.
     pub fn new(ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
-        validate_source_name(source)?;
-        let node = create_node(ipc, &format!("{}-pub", T::SERVICE_SUFFIX))?;
-        let mut this = Self::build(&node, ipc, source)?;
-        this._node = Some(node);
-        Ok(this)
+        Self::on(Pair::open_own(ipc, source, "pub")?)
     }
 
     /// Like [`new`](Self::new) on an existing node, for processes that serve many
@@ -267,11 +323,10 @@ impl<T: Message> Sender<T> {
         ipc: &IpcConfig,
         source: &str,
     ) -> Result<Self, OpenError> {
-        Self::build(node, ipc, source)
+        Self::on(Pair::open(node, ipc, source)?)
     }
 
-    fn build(node: &Node<ipc::Service>, ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
-        let pair = Pair::<T>::open(node, ipc, source)?;
+    fn on(pair: Pair<T>) -> Result<Self, OpenError> {
         let publisher = pair
             .pubsub
             .publisher_builder()
@@ -286,7 +341,6 @@ impl<T: Message> Sender<T> {
             publisher,
             notifier,
             pair,
-            _node: None,
         })
     }
 
@@ -334,10 +388,10 @@ impl<T: Message> Sender<T> {
 /// All receive calls return copies (the messages are small `Copy` structs), so no
 /// shared-memory sample is held between calls.
 pub struct Receiver<T: Message> {
+    // Field order is drop order: ports before the services and node.
     subscriber: Subscriber<ipc::Service, T, ()>,
     listener: Listener<ipc::Service>,
     pair: Pair<T>,
-    _node: Option<Node<ipc::Service>>,
     /// Sequence number of the last message returned, for [`missed`](Self::missed).
     /// `Cell`: receiving takes `&self`, and the type is `!Send` anyway.
     last_seq: Cell<Option<u64>>,
@@ -351,11 +405,7 @@ impl<T: Message> Receiver<T> {
     /// `ipc`'s settings, 128 by default) and a listener on it. Fails with
     /// [`OpenError::Limit`] when all subscriber slots of the service are in use.
     pub fn new(ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
-        validate_source_name(source)?;
-        let node = create_node(ipc, &format!("{}-sub", T::SERVICE_SUFFIX))?;
-        let mut this = Self::build(&node, ipc, source)?;
-        this._node = Some(node);
-        Ok(this)
+        Self::on(Pair::open_own(ipc, source, "sub")?, ipc)
     }
 
     /// Like [`new`](Self::new) on an existing node (see [`Sender::with_node`]).
@@ -364,11 +414,10 @@ impl<T: Message> Receiver<T> {
         ipc: &IpcConfig,
         source: &str,
     ) -> Result<Self, OpenError> {
-        Self::build(node, ipc, source)
+        Self::on(Pair::open(node, ipc, source)?, ipc)
     }
 
-    fn build(node: &Node<ipc::Service>, ipc: &IpcConfig, source: &str) -> Result<Self, OpenError> {
-        let pair = Pair::<T>::open(node, ipc, source)?;
+    fn on(pair: Pair<T>, ipc: &IpcConfig) -> Result<Self, OpenError> {
         // Subscriber first, so that a full service reports the subscriber slots (the
         // setting users know) rather than the listener slots that follow them. A
         // message delivered before the listener exists loses only its wake-up: every
@@ -389,7 +438,6 @@ impl<T: Message> Receiver<T> {
             subscriber,
             listener,
             pair,
-            _node: None,
             last_seq: Cell::new(None),
             missed: Cell::new(0),
         })
@@ -509,19 +557,21 @@ impl<T: Message> Receiver<T> {
     }
 }
 
-/// Maps iceoryx2's limit errors to [`OpenError::Limit`], naming the setting to raise.
+/// Maps iceoryx2's limit errors to [`OpenError::Limit`] and [`OpenError::Mismatch`],
+/// naming the setting(s) to raise.
 mod limits {
     use iceoryx2::port::listener::ListenerCreateError;
     use iceoryx2::port::notifier::NotifierCreateError;
     use iceoryx2::port::publisher::PublisherCreateError;
     use iceoryx2::port::subscriber::SubscriberCreateError;
+    use iceoryx2::prelude::*;
     use iceoryx2::service::builder::event::{EventOpenError, EventOpenOrCreateError};
     use iceoryx2::service::builder::publish_subscribe::{
         PublishSubscribeOpenError, PublishSubscribeOpenOrCreateError,
     };
     use iceoryx2::service::port_factory::PortFactory;
 
-    use super::{OpenError, Pair};
+    use super::{OpenError, Pair, SettingMismatch};
     use crate::settings::{Message, ServiceSettings};
 
     const PUBLISHERS: &str = "ipc.max_publishers";
@@ -537,14 +587,80 @@ mod limits {
         })
     }
 
-    fn smaller(what: &str, asked: usize) -> String {
-        format!(
-            "exists with fewer {what} than the {asked} this process asks for; every process must use the same limits"
-        )
+    fn nodes_full(service: &ServiceName, s: &ServiceSettings) -> Option<OpenError> {
+        let problem = format!("all node slots in use ({} requested)", s.max_nodes);
+        limit(service.as_str(), problem, NODES)
     }
 
-    pub(super) fn pubsub_open(
-        service: &str,
+    /// iceoryx2 reports only the first setting of an existing service that is below
+    /// the request. Opening both services of the pair without requirements shows
+    /// all of them, so the user fixes every one at once instead of one per attempt.
+    /// `None` if neither service can be inspected (e.g. it went away meanwhile).
+    fn mismatch<T: Message>(
+        node: &Node<ipc::Service>,
+        service: &ServiceName,
+        s: &ServiceSettings,
+    ) -> Option<OpenError> {
+        let mut settings: Vec<SettingMismatch> = Vec::new();
+        let mut note = |key, what, asked, created| {
+            if created < asked && !settings.iter().any(|m| m.key == key) {
+                settings.push(SettingMismatch {
+                    key,
+                    what,
+                    asked,
+                    created,
+                });
+            }
+        };
+        let builder = || node.service_builder(service);
+        if let Ok(pubsub) = builder().publish_subscribe::<T>().open() {
+            let c = pubsub.static_config();
+            note(
+                PUBLISHERS,
+                "publisher slots",
+                s.max_publishers,
+                c.max_publishers(),
+            );
+            note(
+                SUBSCRIBERS,
+                "subscriber slots",
+                s.max_subscribers,
+                c.max_subscribers(),
+            );
+            note(NODES, "node slots", s.max_nodes, c.max_nodes());
+            let buffer = c.subscriber_max_buffer_size();
+            note(
+                BUFFER,
+                "subscriber buffer slots",
+                s.subscriber_buffer_size,
+                buffer,
+            );
+        }
+        if let Ok(event) = builder().event().open() {
+            let c = event.static_config();
+            note(
+                PUBLISHERS,
+                "notifier slots",
+                s.max_notifiers,
+                c.max_notifiers(),
+            );
+            note(
+                SUBSCRIBERS,
+                "listener slots",
+                s.max_listeners,
+                c.max_listeners(),
+            );
+            note(NODES, "node slots", s.max_nodes, c.max_nodes());
+        }
+        (!settings.is_empty()).then(|| OpenError::Mismatch {
+            service: service.as_str().to_owned(),
+            settings,
+        })
+    }
+
+    pub(super) fn pubsub_open<T: Message>(
+        node: &Node<ipc::Service>,
+        service: &ServiceName,
         s: &ServiceSettings,
         e: &PublishSubscribeOpenOrCreateError,
     ) -> Option<OpenError> {
@@ -553,35 +669,18 @@ mod limits {
             return None;
         };
         match e {
-            E::ExceedsMaxNumberOfNodes => limit(
-                service,
-                format!("all node slots in use ({} requested)", s.max_nodes),
-                NODES,
-            ),
-            E::DoesNotSupportRequestedAmountOfPublishers => limit(
-                service,
-                smaller("publisher slots", s.max_publishers),
-                PUBLISHERS,
-            ),
-            E::DoesNotSupportRequestedAmountOfSubscribers => limit(
-                service,
-                smaller("subscriber slots", s.max_subscribers),
-                SUBSCRIBERS,
-            ),
-            E::DoesNotSupportRequestedAmountOfNodes => {
-                limit(service, smaller("node slots", s.max_nodes), NODES)
-            }
-            E::DoesNotSupportRequestedMinBufferSize => limit(
-                service,
-                smaller("subscriber buffer slots", s.subscriber_buffer_size),
-                BUFFER,
-            ),
+            E::ExceedsMaxNumberOfNodes => nodes_full(service, s),
+            E::DoesNotSupportRequestedAmountOfPublishers
+            | E::DoesNotSupportRequestedAmountOfSubscribers
+            | E::DoesNotSupportRequestedAmountOfNodes
+            | E::DoesNotSupportRequestedMinBufferSize => mismatch::<T>(node, service, s),
             _ => None,
         }
     }
 
-    pub(super) fn event_open(
-        service: &str,
+    pub(super) fn event_open<T: Message>(
+        node: &Node<ipc::Service>,
+        service: &ServiceName,
         s: &ServiceSettings,
         e: &EventOpenOrCreateError,
     ) -> Option<OpenError> {
@@ -590,24 +689,10 @@ mod limits {
             return None;
         };
         match e {
-            E::ExceedsMaxNumberOfNodes => limit(
-                service,
-                format!("all node slots in use ({} requested)", s.max_nodes),
-                NODES,
-            ),
-            E::DoesNotSupportRequestedAmountOfNotifiers => limit(
-                service,
-                smaller("notifier slots", s.max_notifiers),
-                PUBLISHERS,
-            ),
-            E::DoesNotSupportRequestedAmountOfListeners => limit(
-                service,
-                smaller("listener slots", s.max_listeners),
-                SUBSCRIBERS,
-            ),
-            E::DoesNotSupportRequestedAmountOfNodes => {
-                limit(service, smaller("node slots", s.max_nodes), NODES)
-            }
+            E::ExceedsMaxNumberOfNodes => nodes_full(service, s),
+            E::DoesNotSupportRequestedAmountOfNotifiers
+            | E::DoesNotSupportRequestedAmountOfListeners
+            | E::DoesNotSupportRequestedAmountOfNodes => mismatch::<T>(node, service, s),
             _ => None,
         }
     }

@@ -19,15 +19,22 @@
 //!   sleep instead of polling. Aliases: [`VelocityPublisher`], [`HeadingSubscriber`]
 //!   (the two a user needs) and [`VelocitySubscriber`], [`HeadingPublisher`] (the
 //!   daemon's side).
-//! - [`codec`] — [`encode_zenoh`]/[`decode_zenoh`]: a [`HeadingEstimate`] as the
-//!   Zenoh payload (bincode 2, fixed-width little-endian: the same 64 bytes as the
-//!   iceoryx2 layout); bad bytes are a [`DecodeError`], never a panic.
-//! - [`remote`] — [`ZenohHeadingSubscriber`], the `@ghnetd` key names (presence,
-//!   stats, model) and [`peer_config`], the loopback-only Zenoh config.
+//! - `codec` (feature `zenoh`) — `encode_zenoh`/`decode_zenoh`: a [`HeadingEstimate`]
+//!   as the Zenoh payload (bincode 2, fixed-width little-endian: the same 64 bytes as
+//!   the iceoryx2 layout); bad bytes are a `DecodeError`, never a panic.
+//! - `remote` (feature `zenoh`) — `ZenohHeadingSubscriber`, the `@ghnetd` key names
+//!   (presence, stats, model) and `peer_config`, the loopback-only Zenoh config.
 //! - [`signals`] — [`termination_requested`]: Ctrl-C handling for programs using the
 //!   helpers (iceoryx2 captures SIGINT/SIGTERM once it is in use).
-//! - [`testing`] — [`testing::TestNamespace`], a private iceoryx2 namespace per test
-//!   that cleans up after itself.
+//! - `testing` (feature `testing`) — `testing::TestNamespace`, a private iceoryx2
+//!   namespace per test that cleans up after itself.
+//!
+//! # Features
+//!
+//! - `zenoh` (default): the Zenoh modules above, and the `zenoh` re-export. Without
+//!   it the crate is iceoryx2 only: a publisher or consumer on shared memory builds
+//!   without Zenoh and bincode (`default-features = false`).
+//! - `testing`: the `testing` module, for tests of this crate and of its users.
 //!
 //! # Protocol in one paragraph
 //!
@@ -54,23 +61,28 @@
 
 #![warn(missing_docs)]
 
+#[cfg(feature = "zenoh")]
 pub mod codec;
 pub mod endpoint;
 pub mod names;
+#[cfg(feature = "zenoh")]
 pub mod remote;
 pub mod settings;
 pub mod signals;
+#[cfg(feature = "testing")]
 pub mod testing;
 pub mod wire;
 
+#[cfg(feature = "zenoh")]
 pub use codec::{decode_zenoh, encode_zenoh, DecodeError, ZENOH_HEADING_LEN};
 pub use endpoint::{
     HeadingPublisher, HeadingSubscriber, OpenError, Receiver, RecvError, SendError, Sender,
-    VelocityPublisher, VelocitySubscriber,
+    SettingMismatch, VelocityPublisher, VelocitySubscriber,
 };
 pub use names::{
     validate_source_name, IpcConfig, NameError, DEFAULT_PREFIX, EXPIRED_CONNECTION_BUFFER,
 };
+#[cfg(feature = "zenoh")]
 pub use remote::{peer_config, ZenohHeadingSubscriber, ZenohOpenError, DEFAULT_ZENOH_PORT};
 pub use settings::{Message, ServiceSettings, SERVICE_SETTINGS};
 pub use signals::termination_requested;
@@ -79,6 +91,7 @@ pub use wire::{flags, CodecError, HeadingEstimate, HeadingStatus, VelocitySample
 /// The iceoryx2 crate this wire is built on, re-exported so users (and the daemon)
 /// name exactly the pinned version's types, e.g. `ghnet_client::iceoryx2::config::Config`.
 pub use iceoryx2;
+#[cfg(feature = "zenoh")]
 /// The Zenoh crate of the Zenoh output (pinned `=1.10.2`, tcp and unix-socket
 /// transports only), re-exported so consumers open sessions with the same version.
 pub use zenoh;

@@ -258,8 +258,8 @@ impl IpcConfig {
 
 /// Connections to publishers that went away which a subscriber keeps while it still
 /// holds their samples. iceoryx2's default, 128, preallocates about 480 KB of heap
-/// per subscriber (`Subscriber::new`, measured with heaptrack), i.e. most of ghnetd's
-/// resident memory with 100 sources. ghnet's receivers copy each sample out and
+/// per subscriber (in `Subscriber::new`), which would be most of ghnetd's resident
+/// memory with many sources. ghnet's receivers copy each sample out and
 /// release it at once, so they never hold more than iceoryx2's
 /// `subscriber_max_borrowed_samples` (2 by default), which stays the lower bound.
 pub const EXPIRED_CONNECTION_BUFFER: usize = 4;

@@ -1,9 +1,12 @@
 //! Ctrl-C for programs that use the helpers.
 //!
-//! iceoryx2 installs *capturing* SIGINT/SIGTERM handlers the first time it touches
-//! its signal module — for example when it zeroes a new shared-memory segment, which
-//! creating a [`Sender`](crate::Sender) does. From then on Ctrl-C no longer kills the
-//! process; the signal is only recorded. A long-running publisher must therefore ask:
+//! iceoryx2 installs *capturing* SIGINT/SIGTERM handlers the first time its signal
+//! module is used: by [`termination_requested`] itself, and by some iceoryx2
+//! operations, depending on its configuration (zeroing a new shared-memory segment).
+//! From then on Ctrl-C no longer kills the process; the signal is only recorded.
+//! Creating a [`Sender`](crate::Sender) and sending does *not* reliably do it, so a
+//! long-running publisher asks from the start, which also makes the first Ctrl-C
+//! behave the same whether or not iceoryx2 got there first:
 //!
 //! ```no_run
 //! # use ghnet_client::{IpcConfig, VelocityPublisher, VelocitySample};
@@ -17,8 +20,9 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! A consumer blocked in [`Receiver::recv`](crate::Receiver::recv) gets
-//! [`RecvError::Interrupted`](crate::RecvError::Interrupted) instead.
+//! A consumer waiting in [`Receiver::recv_timeout`](crate::Receiver::recv_timeout)
+//! gets [`RecvError::Interrupted`](crate::RecvError::Interrupted) instead
+//! ([`Receiver::recv`](crate::Receiver::recv) does not return on a signal).
 
 /// `true` if SIGINT or SIGTERM arrived since the last call.
 ///

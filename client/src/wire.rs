@@ -126,11 +126,7 @@ impl VelocitySample {
 
     /// Decodes from a slice that must be exactly [`Self::SIZE`] bytes long.
     pub fn from_le_slice(b: &[u8]) -> Result<Self, CodecError> {
-        let arr: &[u8; Self::SIZE] = b.try_into().map_err(|_| CodecError {
-            expected: Self::SIZE,
-            actual: b.len(),
-        })?;
-        Ok(Self::from_le_bytes(arr))
+        Ok(Self::from_le_bytes(exactly(b)?))
     }
 }
 
@@ -162,6 +158,12 @@ pub enum HeadingStatus {
     /// Consumers that match answers to samples skip it; a filter stops trusting the
     /// last heading. When samples come again they are answered normally.
     Stale = 4,
+    /// The vehicle is stopped and the heading is the one it had when it stopped, kept
+    /// from this source's history (temporal models only): a car does not turn while
+    /// standing, so the last moving heading stays the best estimate. `heading_std_deg`
+    /// grows with the time stopped; use it with that σ. Clients built before this
+    /// status existed see an unknown value and treat it as not `Ok`.
+    Held = 5,
 }
 
 impl HeadingStatus {
@@ -174,6 +176,7 @@ impl HeadingStatus {
             2 => Self::Stationary,
             3 => Self::InvalidInput,
             4 => Self::Stale,
+            5 => Self::Held,
             _ => return None,
         })
     }
@@ -209,7 +212,9 @@ pub struct HeadingEstimate {
     /// Plain `atan2(v_east, v_north)` heading in degrees, `[0, 360)`, as a model-free
     /// reference; NaN for invalid input.
     pub atan2_deg: f32,
-    /// Horizontal speed `sqrt(v_north² + v_east²)` in m/s; NaN for non-finite input.
+    /// Horizontal speed `sqrt(v_north² + v_east²)` in m/s; NaN when `v_north` or
+    /// `v_east` is not finite. `InvalidInput` answers carry it too (e.g. a speed above
+    /// ghnetd's `model.max_speed`).
     pub speed: f32,
     /// Stable 32-bit id of the model weights (a hash), so consumers can tell models
     /// apart even when names collide.
@@ -289,11 +294,7 @@ impl HeadingEstimate {
 
     /// Decodes from a slice that must be exactly [`Self::SIZE`] bytes long.
     pub fn from_le_slice(b: &[u8]) -> Result<Self, CodecError> {
-        let arr: &[u8; Self::SIZE] = b.try_into().map_err(|_| CodecError {
-            expected: Self::SIZE,
-            actual: b.len(),
-        })?;
-        Ok(Self::from_le_bytes(arr))
+        Ok(Self::from_le_bytes(exactly(b)?))
     }
 }
 
@@ -307,6 +308,14 @@ pub struct CodecError {
     pub actual: usize,
 }
 
+/// `b` as an array of exactly `N` bytes.
+fn exactly<const N: usize>(b: &[u8]) -> Result<&[u8; N], CodecError> {
+    b.try_into().map_err(|_| CodecError {
+        expected: N,
+        actual: b.len(),
+    })
+}
+
 fn take<const N: usize>(b: &[u8], at: usize) -> [u8; N] {
     let mut out = [0u8; N];
     out.copy_from_slice(&b[at..at + N]);
@@ -318,38 +327,29 @@ mod tests {
     use super::*;
     use std::mem::{align_of, offset_of, size_of};
 
+    /// Size, alignment and every field's offset of `$t`.
+    macro_rules! assert_layout {
+        ($t:ty, size $size:expr, align $align:expr, { $($field:ident: $offset:expr),* $(,)? }) => {
+            assert_eq!(size_of::<$t>(), $size);
+            assert_eq!(size_of::<$t>(), <$t>::SIZE);
+            assert_eq!(align_of::<$t>(), $align);
+            $(assert_eq!(offset_of!($t, $field), $offset, stringify!($field));)*
+        };
+    }
+
     /// These numbers are the tables in client/README.md. If this test fails, the wire
     /// changed: update the README, the type name, and every foreign mirror.
     #[test]
-    fn velocity_sample_layout() {
-        assert_eq!(size_of::<VelocitySample>(), 40);
-        assert_eq!(size_of::<VelocitySample>(), VelocitySample::SIZE);
-        assert_eq!(align_of::<VelocitySample>(), 8);
-        assert_eq!(offset_of!(VelocitySample, timestamp_ns), 0);
-        assert_eq!(offset_of!(VelocitySample, seq), 8);
-        assert_eq!(offset_of!(VelocitySample, v_north), 16);
-        assert_eq!(offset_of!(VelocitySample, v_east), 20);
-        assert_eq!(offset_of!(VelocitySample, v_down), 24);
-        assert_eq!(offset_of!(VelocitySample, speed_accuracy), 28);
-        assert_eq!(offset_of!(VelocitySample, flags), 32);
-        assert_eq!(offset_of!(VelocitySample, _reserved), 36);
-    }
-
-    #[test]
-    fn heading_estimate_layout() {
-        assert_eq!(size_of::<HeadingEstimate>(), 64);
-        assert_eq!(size_of::<HeadingEstimate>(), HeadingEstimate::SIZE);
-        assert_eq!(align_of::<HeadingEstimate>(), 8);
-        assert_eq!(offset_of!(HeadingEstimate, timestamp_ns), 0);
-        assert_eq!(offset_of!(HeadingEstimate, seq), 8);
-        assert_eq!(offset_of!(HeadingEstimate, processing_ns), 16);
-        assert_eq!(offset_of!(HeadingEstimate, heading_deg), 24);
-        assert_eq!(offset_of!(HeadingEstimate, heading_std_deg), 28);
-        assert_eq!(offset_of!(HeadingEstimate, atan2_deg), 32);
-        assert_eq!(offset_of!(HeadingEstimate, speed), 36);
-        assert_eq!(offset_of!(HeadingEstimate, model_id), 40);
-        assert_eq!(offset_of!(HeadingEstimate, status), 44);
-        assert_eq!(offset_of!(HeadingEstimate, model_name), 48);
+    fn layouts_are_the_documented_tables() {
+        assert_layout!(VelocitySample, size 40, align 8, {
+            timestamp_ns: 0, seq: 8, v_north: 16, v_east: 20, v_down: 24,
+            speed_accuracy: 28, flags: 32, _reserved: 36,
+        });
+        assert_layout!(HeadingEstimate, size 64, align 8, {
+            timestamp_ns: 0, seq: 8, processing_ns: 16, heading_deg: 24,
+            heading_std_deg: 28, atan2_deg: 32, speed: 36, model_id: 40, status: 44,
+            model_name: 48,
+        });
         assert_eq!(size_of::<[u8; MODEL_NAME_LEN]>(), 16);
     }
 
@@ -426,10 +426,12 @@ mod tests {
             HeadingStatus::Stationary,
             HeadingStatus::InvalidInput,
             HeadingStatus::Stale,
+            HeadingStatus::Held,
         ] {
             assert_eq!(HeadingStatus::from_u32(s.as_u32()), Some(s));
         }
-        assert_eq!(HeadingStatus::from_u32(5), None);
+        assert_eq!(HeadingStatus::Held.as_u32(), 5);
+        assert_eq!(HeadingStatus::from_u32(6), None);
         assert_eq!(HeadingStatus::from_u32(u32::MAX), None);
     }
 

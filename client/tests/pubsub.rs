@@ -111,15 +111,28 @@ fn service_created_with_smaller_limits_is_refused() {
         .publish_subscribe::<VelocitySample>()
         .open_or_create()
         .unwrap();
-    match VelocityPublisher::new(&ipc, "gnss0") {
-        // Smaller limits than ours: the error names the setting to raise.
-        Err(OpenError::Limit { service, key, .. }) => {
-            assert_eq!(service, "ghnet/gnss0/velocity");
-            assert!(key.starts_with("ipc."), "{key}");
-        }
-        Err(e) => panic!("unexpected error {e}"),
-        Ok(_) => panic!("open must fail"),
-    }
+    let err = VelocityPublisher::new(&ipc, "gnss0")
+        .err()
+        .expect("open must fail");
+    let msg = err.to_string();
+    let OpenError::Mismatch { service, settings } = err else {
+        panic!("unexpected error {msg}");
+    };
+    // Smaller limits than ours: the error names every setting to raise at once
+    // (iceoryx2 itself reports only the first). iceoryx2's defaults: 2 publishers
+    // (we ask 4), a buffer of 2 (we ask 128).
+    assert_eq!(service, "ghnet/gnss0/velocity");
+    let keys: Vec<_> = settings.iter().map(|m| m.key).collect();
+    assert_eq!(
+        keys,
+        ["ipc.max_publishers", "ipc.subscriber_buffer"],
+        "{msg}"
+    );
+    assert!(
+        msg.contains("fewer publisher slots than the 4 asked, created with 2 (ipc.max_publishers)")
+            && msg.ends_with("created with 2 (ipc.subscriber_buffer)"),
+        "{msg}"
+    );
 }
 
 #[test]

@@ -1,6 +1,6 @@
-//! Ctrl-C with the helpers: iceoryx2 captures SIGINT once a Sender exists, so a
-//! publisher loop must poll `termination_requested()`. Runs the publisher as a child
-//! process (signals in the test process would hit every test).
+//! Ctrl-C with the helpers: once iceoryx2 captures SIGINT (at the latest from the
+//! first `termination_requested()`), a publisher loop must poll it. Runs the publisher
+//! as a child process (signals in the test process would hit every test).
 
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -18,16 +18,17 @@ fn child_polling_publisher() {
     };
     let (prefix, root) = spec.split_once('|').unwrap();
     let gnss = VelocityPublisher::new(&IpcConfig::isolated(prefix, root).unwrap(), "sig").unwrap();
-    gnss.send(VelocitySample::new(0, 0, 1.0, 0.0, 0.0)).unwrap();
-    // Only now is iceoryx2's capturing handler surely installed; a SIGINT before this
-    // line would still kill the process the default way.
+    // The first poll installs iceoryx2's capturing handler (creating the publisher
+    // need not have): a SIGINT before it would still kill the process the default way.
+    let mut stop = ghnet_client::termination_requested();
     println!("ready");
-    let mut seq = 1;
-    while !ghnet_client::termination_requested() {
+    let mut seq = 0;
+    while !stop {
         gnss.send(VelocitySample::new(0, seq, 1.0, 0.0, 0.0))
             .unwrap();
         seq += 1;
         std::thread::sleep(Duration::from_millis(5));
+        stop = ghnet_client::termination_requested();
     }
     println!("stopped cleanly");
 }

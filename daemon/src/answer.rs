@@ -169,8 +169,16 @@ impl Tracker {
             }
             _ => {
                 self.counters.invalid += 1;
-                let speed = s.v_north.hypot(s.v_east);
                 let nan = f32::NAN;
+                // The wire contract: NaN when a horizontal component is not finite
+                // (hypot would give +inf for an infinite one); otherwise the speed,
+                // which tells a consumer why e.g. a glitch above max_speed was refused.
+                let finite = s.v_north.is_finite() && s.v_east.is_finite();
+                let speed = if finite {
+                    s.v_north.hypot(s.v_east)
+                } else {
+                    nan
+                };
                 (nan, nan, nan, speed, HeadingStatus::InvalidInput)
             }
         };
@@ -305,6 +313,7 @@ fn wire_status(s: Status) -> HeadingStatus {
         Status::LowSpeed => HeadingStatus::LowSpeed,
         Status::Stationary => HeadingStatus::Stationary,
         Status::Invalid => HeadingStatus::InvalidInput,
+        Status::Held => HeadingStatus::Held,
     }
 }
 
@@ -398,6 +407,31 @@ mod tests {
             );
             assert_eq!(t.counters.invalid, 1, "case {i}");
         }
+    }
+
+    /// `speed` of an invalid answer: NaN for a non-finite horizontal component (as
+    /// client/README.md says), the measured value for finite ones.
+    #[test]
+    fn invalid_speed_is_nan_only_for_non_finite_input() {
+        let (mut p, l, tag) = setup();
+        let mut speed = |vn, ve| {
+            let h = Tracker::default().answer(&sample(0, 0, vn, ve), &mut p, &l, &tag);
+            assert_eq!(h.heading_status(), Some(HeadingStatus::InvalidInput));
+            h.speed
+        };
+        for (vn, ve) in [
+            (f32::INFINITY, 0.0),
+            (0.0, f32::NEG_INFINITY),
+            (f32::INFINITY, f32::NAN),
+            (f32::NAN, 1.0),
+        ] {
+            assert!(speed(vn, ve).is_nan(), "{vn}, {ve}");
+        }
+        assert_eq!(
+            speed(90.0, 120.0),
+            150.0,
+            "above max_speed: refused, speed given"
+        );
     }
 
     #[test]

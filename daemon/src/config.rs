@@ -1,7 +1,7 @@
 //! Configuration: built-in defaults, then a TOML file, then command-line flags.
 //!
 //! The file is optional; with none, `ghnetd` serves discovered sources with the
-//! embedded `ghnet-full` model. Unknown keys are errors (a typo must not silently fall
+//! embedded default model. Unknown keys are errors (a typo must not silently fall
 //! back to a default). `ghnetd --print-config` prints the effective result, and
 //! `daemon/ghnetd.example.toml` is tested to equal the defaults.
 
@@ -80,6 +80,25 @@ impl Default for IpcSection {
     }
 }
 
+impl IpcSection {
+    fn validate(&self) -> anyhow::Result<()> {
+        for (key, v) in [
+            ("ipc.max_publishers", self.max_publishers),
+            ("ipc.max_subscribers", self.max_subscribers),
+            ("ipc.max_nodes", self.max_nodes),
+        ] {
+            if !(1..=MAX_SLOTS_LIMIT).contains(&v) {
+                bail!("{key}: {v} is outside 1..={MAX_SLOTS_LIMIT}");
+            }
+        }
+        let b = self.subscriber_buffer;
+        if !(1..=MAX_SUBSCRIBER_BUFFER).contains(&b) {
+            bail!("ipc.subscriber_buffer: {b} is outside 1..={MAX_SUBSCRIBER_BUFFER}");
+        }
+        Ok(())
+    }
+}
+
 /// Upper bound of the `ipc.max_*` slot limits: each slot costs shared memory in every
 /// service, and far more than one host needs.
 pub const MAX_SLOTS_LIMIT: usize = 1024;
@@ -123,11 +142,42 @@ impl Default for SourcesSection {
     }
 }
 
+impl SourcesSection {
+    fn validate(&self) -> anyhow::Result<()> {
+        let mut seen = BTreeSet::new();
+        for s in &self.static_sources {
+            names::validate_source_name(s).context("sources.static")?;
+            if !seen.insert(s) {
+                bail!("sources.static: source `{s}` is listed twice");
+            }
+        }
+        let si = self.discovery_interval_ms;
+        if !(10..=60_000).contains(&si) {
+            bail!("sources.discovery_interval_ms: {si} is outside 10..=60000");
+        }
+        let stale = self.stale_after_ms;
+        if stale != 0 && !(10..=3_600_000).contains(&stale) {
+            bail!("sources.stale_after_ms: {stale} is outside 10..=3600000 (0 = off)");
+        }
+        let max = self.max_sources;
+        if !(1..=MAX_SOURCES_LIMIT).contains(&max) {
+            bail!("sources.max_sources: {max} is outside 1..={MAX_SOURCES_LIMIT}");
+        }
+        if self.static_sources.len() > max {
+            bail!(
+                "sources.static: {} sources but sources.max_sources is {max}",
+                self.static_sources.len()
+            );
+        }
+        Ok(())
+    }
+}
+
 /// `[model]`
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ModelSection {
-    /// A built-in model (`ghnet-full`, `paper-s1`) or a path to a `.safetensors` file
+    /// A built-in model (`ghnet-epoch`, `ghnet-temporal`, `kf`, `paper-s1`) or a path to a `.safetensors` file
     /// (relative to the working directory).
     pub name: String,
     /// Below this horizontal speed (m/s) the status is `Stationary`.
@@ -149,6 +199,31 @@ impl Default for ModelSection {
             max_std_deg: f32_to_f64(p.max_std_deg),
             max_speed: f32_to_f64(p.max_speed),
         }
+    }
+}
+
+impl ModelSection {
+    fn validate(&self) -> anyhow::Result<()> {
+        if self.name.trim().is_empty() {
+            bail!("model.name: empty; use a built-in name (ghnet-epoch, ghnet-temporal, kf, paper-s1) or a .safetensors path");
+        }
+        for (key, v) in [
+            ("model.stationary_speed", self.stationary_speed),
+            ("model.max_std_deg", self.max_std_deg),
+            ("model.max_speed", self.max_speed),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("{key}: {v} must be a positive number");
+            }
+        }
+        if self.stationary_speed >= self.max_speed {
+            bail!(
+                "model.stationary_speed: {} must be below model.max_speed ({})",
+                self.stationary_speed,
+                self.max_speed
+            );
+        }
+        Ok(())
     }
 }
 
@@ -195,9 +270,9 @@ pub struct ZenohSection {
     /// Zenoh gossip scouting (peers telling each other about peers). Off by default.
     pub gossip: bool,
     /// A standard Zenoh json5 config file for everything else (router connection,
-    /// TLS, access control, transmit queue). Unset: Zenoh's defaults under the keys
-    /// above, except a deeper transmit queue (16 batches for data, 50 ms before a
-    /// heading is dropped) so that bursts of headings from many sources are not lost.
+    /// TLS, access control, timeouts). Unset: Zenoh's defaults under the keys above,
+    /// except ghnetd's transmit queue ([`ZENOH_TX_DEFAULTS`]); a file's own values rule
+    /// instead, so a file should keep them.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub config_file: Option<PathBuf>,
 }
@@ -220,15 +295,9 @@ impl Default for ZenohSection {
 }
 
 /// ghnetd's Zenoh transmit queue when no `zenoh.config_file` is given (JSON5 values
-/// by config path; a config file replaces them).
-///
-/// The heading publishers drop on congestion, and the last heading of each round is
-/// `express` (it sends its batch at once), so 100 sources answering one sample each
-/// take 100 batches. Zenoh's default queue (2 batches, drop after 1 ms) lost 18% of
-/// such a burst on a loaded 2-core machine (tests/tests/soak.rs). 16 batches, and up
-/// to 50 ms for one to free before dropping: no loss there. A consumer that stops
-/// reading costs the loop at most one such wait: while the queue stays congested,
-/// Zenoh drops further headings without waiting.
+/// by config path; a config file replaces them): 16 batches, and up to 50 ms for one
+/// to free before a heading is dropped. Why: daemon/README.md, section "Zenoh
+/// transmit queue".
 pub const ZENOH_TX_DEFAULTS: [(&str, &str); 2] = [
     ("transport/link/tx/queue/size/data", "16"),
     (
@@ -238,6 +307,20 @@ pub const ZENOH_TX_DEFAULTS: [(&str, &str); 2] = [
 ];
 
 impl ZenohSection {
+    fn validate(&self) -> anyhow::Result<()> {
+        if !["peer", "client", "router"].contains(&self.mode.as_str()) {
+            bail!(
+                "zenoh.mode: `{}` is not one of peer, client, router",
+                self.mode
+            );
+        }
+        if self.enabled {
+            // Parses the file and every endpoint now, so a typo is a start-up error.
+            self.zenoh_config()?;
+        }
+        Ok(())
+    }
+
     /// The Zenoh session config: `config_file` (or Zenoh's defaults), then these keys.
     /// Errors name the key.
     pub fn zenoh_config(&self) -> anyhow::Result<ghnet_client::zenoh::Config> {
@@ -286,6 +369,27 @@ impl ZenohSection {
             self.gossip.to_string(),
         )?;
         Ok(c)
+    }
+}
+
+/// A flag that was given replaces the key.
+fn set<T: Clone>(key: &mut T, flag: &Option<T>) {
+    if let Some(v) = flag {
+        *key = v.clone();
+    }
+}
+
+/// A flag that was given sets an optional key.
+fn set_some<T: Clone>(key: &mut Option<T>, flag: &Option<T>) {
+    if flag.is_some() {
+        key.clone_from(flag);
+    }
+}
+
+/// A repeatable flag given at least once replaces the whole list.
+fn set_list(key: &mut Vec<String>, flag: &[String]) {
+    if !flag.is_empty() {
+        *key = flag.to_vec();
     }
 }
 
@@ -444,72 +548,34 @@ impl Config {
 
     /// Overrides keys with the flags that were given.
     pub fn apply_flags(&mut self, cli: &Cli) {
-        if let Some(v) = &cli.service_prefix {
-            self.ipc.service_prefix = v.clone();
-        }
-        if let Some(v) = &cli.iceoryx2_global_prefix {
-            self.ipc.iceoryx2_global_prefix = Some(v.clone());
-        }
-        if let Some(v) = &cli.iceoryx2_root_path {
-            self.ipc.iceoryx2_root_path = Some(v.clone());
-        }
-        if let Some(v) = cli.max_publishers {
-            self.ipc.max_publishers = v;
-        }
-        if let Some(v) = cli.max_subscribers {
-            self.ipc.max_subscribers = v;
-        }
-        if let Some(v) = cli.max_nodes {
-            self.ipc.max_nodes = v;
-        }
-        if let Some(v) = cli.subscriber_buffer {
-            self.ipc.subscriber_buffer = v;
-        }
-        if !cli.sources.is_empty() {
-            self.sources.static_sources = cli.sources.clone();
-        }
-        if let Some(v) = cli.discovery {
-            self.sources.discovery = v;
-        }
-        if let Some(v) = cli.discovery_interval_ms {
-            self.sources.discovery_interval_ms = v;
-        }
-        if let Some(v) = cli.max_sources {
-            self.sources.max_sources = v;
-        }
-        if let Some(v) = cli.stale_after_ms {
-            self.sources.stale_after_ms = v;
-        }
-        if let Some(v) = &cli.model {
-            self.model.name = v.clone();
-        }
-        if let Some(v) = cli.stationary_speed {
-            self.model.stationary_speed = v;
-        }
-        if let Some(v) = cli.max_std_deg {
-            self.model.max_std_deg = v;
-        }
-        if let Some(v) = cli.max_speed {
-            self.model.max_speed = v;
-        }
-        if let Some(v) = cli.stats_interval_s {
-            self.stats.interval_s = v;
-        }
-        if let Some(v) = cli.zenoh_enabled {
-            self.zenoh.enabled = v;
-        }
-        if let Some(v) = &cli.zenoh_mode {
-            self.zenoh.mode = v.clone();
-        }
-        if !cli.zenoh_listen.is_empty() {
-            self.zenoh.listen = cli.zenoh_listen.clone();
-        }
-        if !cli.zenoh_connect.is_empty() {
-            self.zenoh.connect = cli.zenoh_connect.clone();
-        }
-        if let Some(v) = &cli.zenoh_config {
-            self.zenoh.config_file = Some(v.clone());
-        }
+        set(&mut self.ipc.service_prefix, &cli.service_prefix);
+        set_some(
+            &mut self.ipc.iceoryx2_global_prefix,
+            &cli.iceoryx2_global_prefix,
+        );
+        set_some(&mut self.ipc.iceoryx2_root_path, &cli.iceoryx2_root_path);
+        set(&mut self.ipc.max_publishers, &cli.max_publishers);
+        set(&mut self.ipc.max_subscribers, &cli.max_subscribers);
+        set(&mut self.ipc.max_nodes, &cli.max_nodes);
+        set(&mut self.ipc.subscriber_buffer, &cli.subscriber_buffer);
+        set_list(&mut self.sources.static_sources, &cli.sources);
+        set(&mut self.sources.discovery, &cli.discovery);
+        set(
+            &mut self.sources.discovery_interval_ms,
+            &cli.discovery_interval_ms,
+        );
+        set(&mut self.sources.max_sources, &cli.max_sources);
+        set(&mut self.sources.stale_after_ms, &cli.stale_after_ms);
+        set(&mut self.model.name, &cli.model);
+        set(&mut self.model.stationary_speed, &cli.stationary_speed);
+        set(&mut self.model.max_std_deg, &cli.max_std_deg);
+        set(&mut self.model.max_speed, &cli.max_speed);
+        set(&mut self.stats.interval_s, &cli.stats_interval_s);
+        set(&mut self.zenoh.enabled, &cli.zenoh_enabled);
+        set(&mut self.zenoh.mode, &cli.zenoh_mode);
+        set_list(&mut self.zenoh.listen, &cli.zenoh_listen);
+        set_list(&mut self.zenoh.connect, &cli.zenoh_connect);
+        set_some(&mut self.zenoh.config_file, &cli.zenoh_config);
     }
 
     /// Checks every value; the error names the key to fix. (The model file is checked
@@ -518,82 +584,16 @@ impl Config {
         names::validate_prefix(&self.ipc.service_prefix).context("ipc.service_prefix")?;
         // Builds the iceoryx2 config, which checks prefix and root path.
         self.ipc_config()?;
-        for (key, v) in [
-            ("ipc.max_publishers", self.ipc.max_publishers),
-            ("ipc.max_subscribers", self.ipc.max_subscribers),
-            ("ipc.max_nodes", self.ipc.max_nodes),
-        ] {
-            if !(1..=MAX_SLOTS_LIMIT).contains(&v) {
-                bail!("{key}: {v} is outside 1..={MAX_SLOTS_LIMIT}");
-            }
-        }
-        let b = self.ipc.subscriber_buffer;
-        if !(1..=MAX_SUBSCRIBER_BUFFER).contains(&b) {
-            bail!("ipc.subscriber_buffer: {b} is outside 1..={MAX_SUBSCRIBER_BUFFER}");
-        }
-
-        let mut seen = BTreeSet::new();
-        for s in &self.sources.static_sources {
-            names::validate_source_name(s).context("sources.static")?;
-            if !seen.insert(s) {
-                bail!("sources.static: source `{s}` is listed twice");
-            }
-        }
-        let si = self.sources.discovery_interval_ms;
-        if !(10..=60_000).contains(&si) {
-            bail!("sources.discovery_interval_ms: {si} is outside 10..=60000");
-        }
-        let stale = self.sources.stale_after_ms;
-        if stale != 0 && !(10..=3_600_000).contains(&stale) {
-            bail!("sources.stale_after_ms: {stale} is outside 10..=3600000 (0 = off)");
-        }
-        let max = self.sources.max_sources;
-        if !(1..=MAX_SOURCES_LIMIT).contains(&max) {
-            bail!("sources.max_sources: {max} is outside 1..={MAX_SOURCES_LIMIT}");
-        }
-        if self.sources.static_sources.len() > max {
-            bail!(
-                "sources.static: {} sources but sources.max_sources is {max}",
-                self.sources.static_sources.len()
-            );
-        }
+        self.ipc.validate()?;
+        self.sources.validate()?;
         if self.stats.interval_s > 86_400 {
             bail!(
                 "stats.interval_s: {} is above one day (86400)",
                 self.stats.interval_s
             );
         }
-        if self.model.name.trim().is_empty() {
-            bail!("model.name: empty; use a built-in name (ghnet-full, paper-s1) or a .safetensors path");
-        }
-        let m = &self.model;
-        for (key, v) in [
-            ("model.stationary_speed", m.stationary_speed),
-            ("model.max_std_deg", m.max_std_deg),
-            ("model.max_speed", m.max_speed),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                bail!("{key}: {v} must be a positive number");
-            }
-        }
-        if m.stationary_speed >= m.max_speed {
-            bail!(
-                "model.stationary_speed: {} must be below model.max_speed ({})",
-                m.stationary_speed,
-                m.max_speed
-            );
-        }
-        if !["peer", "client", "router"].contains(&self.zenoh.mode.as_str()) {
-            bail!(
-                "zenoh.mode: `{}` is not one of peer, client, router",
-                self.zenoh.mode
-            );
-        }
-        if self.zenoh.enabled {
-            // Parses the file and every endpoint now, so a typo is a start-up error.
-            self.zenoh.zenoh_config()?;
-        }
-        Ok(())
+        self.model.validate()?;
+        self.zenoh.validate()
     }
 
     /// The client-side view: service prefix plus the iceoryx2 config with overrides

@@ -3,7 +3,8 @@
 //!
 //! # Layout
 //!
-//! - [`config`] — [`Config`] (TOML sections `ipc`, `sources`, `model`, `stats`) and
+//! - [`config`] — [`Config`] (TOML sections `ipc`, `sources`, `model`, `stats`,
+//!   `zenoh`) and
 //!   [`config::Cli`] (clap flags overriding it); validation with one-line errors that
 //!   name the key.
 //! - [`answer`] — per-sample logic without IPC: input checks, sequence and timestamp
@@ -13,6 +14,9 @@
 //! - `lock` (private) — one ghnetd per service prefix and iceoryx2 namespace: an
 //!   exclusive lock file holding the pid, released by the kernel when its holder
 //!   dies (so `kill -9` leaves nothing to clean up).
+//! - `source` (private) — `Source`, one served source: its ports, its outputs and the
+//!   state that changes while serving it (tracker, last answer, latencies, silence
+//!   watch).
 //! - `output` (private) — `HeadingOutput`, one destination of a source's answers:
 //!   the iceoryx2 heading service, and the Zenoh publisher.
 //! - `remote` (private) — the Zenoh session: heading publishers (congestion control
@@ -20,9 +24,11 @@
 //!   `<prefix>/@ghnetd/<zid>`, and the `<prefix>/@ghnetd/stats` and `.../model`
 //!   queryables, answered on Zenoh's threads from a snapshot the loop refreshes with
 //!   `try_lock` (never waiting).
-//! - `serve` (private) — the event loop: one iceoryx2 node, one `WaitSet` with a
-//!   notification per source listener and one housekeeping interval (discovery,
-//!   publisher liveness, dead-node cleanup, stats line).
+//! - `discovery` (private) — which velocity services exist, and whether a pass needs
+//!   to look (the services directory changed).
+//! - `serve` (private) — the event loop (start, serve, shutdown): one iceoryx2 node,
+//!   one `WaitSet` with a notification per source listener and one housekeeping
+//!   interval (discovery, publisher liveness, dead-node cleanup, stats line).
 //!
 //! # Behaviour
 //!
@@ -35,12 +41,19 @@
 //! silent for longer than `sources.stale_after_ms` (default 2500) gets ONE extra
 //! message with status `Stale` (the last sample's sequence number and timestamp,
 //! heading NaN), which is not an answer to a sample; when samples come again it is
-//! served as before. A second ghnetd for the same service prefix in the same
+//! served as before. A source ghnetd finds but cannot serve (its services cannot be
+//! opened, or `sources.max_sources` is reached) is logged once and listed in
+//! [`Stats::unserved`] and the stats queryable, with the reason. Counters belong to
+//! the source name for the daemon's lifetime: a source that is dropped and comes back
+//! continues them, while its sequence tracking starts afresh (a new publisher may
+//! restart at 0). A second ghnetd for the same service prefix in the same
 //! iceoryx2 namespace exits with an error naming the first one's pid. The
 //! per-sample path allocates nothing of its own: ports and model scratch are made
-//! once per source / once per daemon (`tests/no_alloc.rs` counts). The libraries
-//! allocate on it: iceoryx2 0.10 one small object per loaned sample and two short
-//! lists per WaitSet wake-up, Zenoh one buffer per `put`; none grows with load.
+//! once per source / once per daemon. The libraries allocate on it: iceoryx2 0.10
+//! one small object per loaned sample and two short lists per WaitSet wake-up,
+//! Zenoh its payload buffer per `put`; none grows with load.
+//! `tests/no_alloc.rs` counts the allocations of the real serve path and of a loop
+//! making only the library calls, and requires the same count per sample.
 //!
 //! # Signals and shutdown
 //!
@@ -75,10 +88,12 @@ use serde::Serialize;
 
 pub mod answer;
 pub mod config;
+mod discovery;
 mod lock;
 mod output;
 mod remote;
 mod serve;
+mod source;
 #[cfg(test)]
 mod test_model;
 
@@ -116,6 +131,10 @@ pub struct Stats {
     pub sources_added: u64,
     /// Times a discovered source was dropped because its publishers were gone.
     pub sources_removed: u64,
+    /// Sources with a velocity service that are not served, with the reason: their
+    /// services could not be opened (e.g. created by another process with other
+    /// limits), or `sources.max_sources` was reached.
+    pub unserved: BTreeMap<String, String>,
 }
 
 impl Stats {
@@ -136,8 +155,8 @@ impl Stats {
 /// static source's services that cannot be opened (e.g. created by a client with
 /// smaller limits, or another iceoryx2 version), or another ghnetd already serving
 /// the same service prefix (the message names its pid). A discovered source that
-/// cannot be opened (e.g. all its subscriber slots in use) is logged and skipped
-/// instead.
+/// cannot be opened (e.g. all its subscriber slots in use) is logged and listed in
+/// [`Stats::unserved`] instead.
 pub fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stats> {
     config.validate()?;
     serve::run(config, shutdown)

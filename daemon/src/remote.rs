@@ -12,7 +12,8 @@
 //! stuck consumer (a full TCP window) would block `put` and with it the whole iceoryx2
 //! loop, i.e. every local consumer of every source. Headings are a stream where the
 //! next one supersedes the last, so a remote consumer that cannot keep up loses some
-//! (visible as gaps in `seq`) instead.
+//! (visible as gaps in `seq`) instead. How long Zenoh holds a heading before dropping
+//! it: daemon/README.md, "Zenoh transmit queue".
 //!
 //! Each source has two publishers on its heading key, the same but for `express`: the
 //! answers of one round (the samples of the sources that woke together) but the last
@@ -20,9 +21,8 @@
 //! key), the last on its source's express one, which sends that batch at once.
 //! So a lone heading (one sample in flight, the normal case) leaves at once, and a
 //! round of 64 costs one TCP send and one wake-up of Zenoh's transmit thread instead
-//! of 64. With every heading express, that per-message cost (in ghnetd and in every
-//! subscriber) held 100 sources to about 50,000 headings/s on 2 cores; see the
-//! README's Performance section.
+//! of 64: that per-message cost, paid in ghnetd and in every subscriber, is what
+//! limits throughput with many sources.
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
@@ -31,12 +31,14 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use anyhow::Context;
 use ghnet_client::zenoh::{self, Wait};
 use ghnet_client::{encode_zenoh, HeadingEstimate, IpcConfig};
+use ghnet_models::{Model, ModelMeta};
 use serde::Serialize;
 use tracing::info;
 
 use crate::answer::Counters;
 use crate::config::ZenohSection;
 use crate::output::{Burst, HeadingOutput, OutputError};
+use crate::source::State;
 
 /// Processing times kept per source for the stats percentiles (the most recent ones).
 pub(crate) const LATENCY_WINDOW: usize = 1024;
@@ -66,18 +68,23 @@ impl LatencyRing {
 }
 
 /// What the loop last published about one source.
-#[derive(Clone)]
 struct SourceSnapshot {
     counters: Counters,
+    served: bool,
     last: Option<HeadingEstimate>,
     latencies: Box<[u64; LATENCY_WINDOW]>,
     latency_len: usize,
 }
 
-/// State shared between the loop (writer) and the queryables (readers).
+/// State shared between the loop (writer) and the queryables (readers). A source
+/// stays in `sources` after it is dropped (`served: false`), with the counters it
+/// had, so what happened to it (e.g. its `stale` count) does not vanish with it.
 #[derive(Default)]
 pub(crate) struct Shared {
     sources: BTreeMap<String, SourceSnapshot>,
+    unserved: BTreeMap<String, String>,
+    sources_added: u64,
+    sources_removed: u64,
 }
 
 /// Percentiles of the processing time, ns.
@@ -90,10 +97,26 @@ struct Latency {
     max_ns: u64,
 }
 
+impl Latency {
+    fn of(window: &[u64]) -> Option<Self> {
+        let mut lat = window.to_vec();
+        lat.sort_unstable();
+        let pct = |p: f64| lat[((lat.len() - 1) as f64 * p).round() as usize];
+        (!lat.is_empty()).then(|| Latency {
+            window: lat.len(),
+            p50_ns: pct(0.5),
+            p90_ns: pct(0.9),
+            p99_ns: pct(0.99),
+            max_ns: lat[lat.len() - 1],
+        })
+    }
+}
+
 #[derive(Serialize)]
 struct SourceStats<'a> {
     #[serde(flatten)]
     counters: &'a Counters,
+    served: bool,
     last_seq: Option<u64>,
     last_timestamp_ns: Option<u64>,
     last_heading_deg: Option<f32>,
@@ -102,15 +125,36 @@ struct SourceStats<'a> {
 }
 
 #[derive(Serialize)]
-struct StatsReply<'a> {
-    daemon: &'a DaemonId,
-    sources: BTreeMap<&'a str, SourceStats<'a>>,
+struct UnservedStats<'a> {
+    reason: &'a str,
 }
 
-/// Who answers: several daemons may share a prefix.
+/// The `@ghnetd/stats` answer; daemon/README.md documents every field.
+#[derive(Serialize)]
+struct StatsReply<'a> {
+    daemon: &'a DaemonId,
+    sources_added: u64,
+    sources_removed: u64,
+    sources: BTreeMap<&'a str, SourceStats<'a>>,
+    unserved: BTreeMap<&'a str, UnservedStats<'a>>,
+}
+
+/// The `@ghnetd/model` answer: the model metadata, its id, and who answers.
+#[derive(Serialize)]
+struct ModelReply<'a> {
+    #[serde(flatten)]
+    meta: &'a ModelMeta,
+    /// The `model_id` every heading of this model carries.
+    model_id: u32,
+    daemon: &'a DaemonId,
+}
+
+/// Who answers: several daemons may share a Zenoh network, and a query without
+/// consolidation gets one answer from each.
 #[derive(Serialize, Clone)]
 struct DaemonId {
     zid: String,
+    prefix: String,
     pid: u32,
     started_unix_s: u64,
 }
@@ -121,34 +165,56 @@ impl Shared {
             .sources
             .iter()
             .map(|(name, s)| {
-                let mut lat: Vec<u64> = s.latencies[..s.latency_len].to_vec();
-                lat.sort_unstable();
-                let pct = |p: f64| lat[((lat.len() - 1) as f64 * p).round() as usize];
-                let processing = (!lat.is_empty()).then(|| Latency {
-                    window: lat.len(),
-                    p50_ns: pct(0.5),
-                    p90_ns: pct(0.9),
-                    p99_ns: pct(0.99),
-                    max_ns: lat[lat.len() - 1],
-                });
                 let last = s.last.as_ref();
                 let stats = SourceStats {
                     counters: &s.counters,
+                    served: s.served,
                     last_seq: last.map(|h| h.seq),
                     last_timestamp_ns: last.map(|h| h.timestamp_ns),
                     // NaN is not JSON: an invalid last answer has no heading.
                     last_heading_deg: last.map(|h| h.heading_deg).filter(|v| v.is_finite()),
                     last_status: last.map(|h| h.status),
-                    processing,
+                    processing: Latency::of(&s.latencies[..s.latency_len]),
                 };
                 (name.as_str(), stats)
             })
             .collect();
+        let unserved = self
+            .unserved
+            .iter()
+            .map(|(name, reason)| (name.as_str(), UnservedStats { reason }))
+            .collect();
         serde_json::to_string(&StatsReply {
             daemon: id,
+            sources_added: self.sources_added,
+            sources_removed: self.sources_removed,
             sources,
+            unserved,
         })
         .expect("stats always serialise")
+    }
+
+    fn write(&mut self, source: &str, state: &State, served: bool) {
+        let ring = &state.latency;
+        match self.sources.get_mut(source) {
+            Some(s) => {
+                s.counters = state.tracker.counters;
+                s.served = served;
+                s.last = state.last;
+                s.latencies.copy_from_slice(&ring.ns[..]);
+                s.latency_len = ring.len;
+            }
+            None => {
+                let snapshot = SourceSnapshot {
+                    counters: state.tracker.counters,
+                    served,
+                    last: state.last,
+                    latencies: ring.ns.clone(),
+                    latency_len: ring.len,
+                };
+                self.sources.insert(source.to_owned(), snapshot);
+            }
+        }
     }
 }
 
@@ -169,76 +235,40 @@ impl ZenohSide {
     pub(crate) fn open(
         section: &ZenohSection,
         ipc: &IpcConfig,
-        model_json: String,
+        model: &Model,
     ) -> anyhow::Result<Self> {
-        let mut section = section.clone();
-        section.listen = section
-            .listen
-            .iter()
-            .map(|e| resolve_port_zero(e))
-            .collect::<anyhow::Result<_>>()?;
-        let config = section.zenoh_config()?;
-        let session = zenoh::open(config).wait().map_err(|e| {
-            anyhow::anyhow!(
-                "zenoh.listen {:?}: cannot open the Zenoh session: {e}",
-                section.listen
-            )
-        })?;
-        let zid = session.zid().to_string();
-        info!(
-            zid = %zid,
-            mode = %section.mode,
-            listening = ?section.listen,
-            connect = ?section.connect,
-            multicast_scouting = section.multicast_scouting,
-            gossip = section.gossip,
-            config_file = ?section.config_file,
-            "zenoh session open"
-        );
-
-        let token = session
-            .liveliness()
-            .declare_token(ipc.zenoh_presence_key(&zid))
-            .wait()
-            .map_err(|e| anyhow::anyhow!("cannot declare the Zenoh liveliness token: {e}"))?;
-
-        let shared = Arc::new(Mutex::new(Shared::default()));
+        let session = open_session(section)?;
         let id = DaemonId {
-            zid: zid.clone(),
+            zid: session.zid().to_string(),
+            prefix: ipc.prefix().to_owned(),
             pid: std::process::id(),
             started_unix_s: SystemTime::now()
                 .duration_since(UNIX_EPOCH)
                 .map(|d| d.as_secs())
                 .unwrap_or(0),
         };
+        let token = session
+            .liveliness()
+            .declare_token(ipc.zenoh_presence_key(&id.zid))
+            .wait()
+            .map_err(|e| anyhow::anyhow!("cannot declare the Zenoh liveliness token: {e}"))?;
+        let shared = Arc::new(Mutex::new(Shared::default()));
         let reader = shared.clone();
-        let stats = session
-            .declare_queryable(ipc.zenoh_stats_key())
-            .callback(move |query| {
-                // Serialise under the lock (microseconds), reply outside it.
-                let json = {
-                    let s = reader.lock().unwrap_or_else(|e| e.into_inner());
-                    s.to_json(&id)
-                };
-                let _ = query
-                    .reply(query.key_expr().clone(), json)
-                    .encoding(zenoh::bytes::Encoding::APPLICATION_JSON)
-                    .wait();
-            })
-            .wait()
-            .map_err(|e| anyhow::anyhow!("cannot declare the Zenoh stats queryable: {e}"))?;
-        let model = session
-            .declare_queryable(ipc.zenoh_model_key())
-            .callback(move |query| {
-                let _ = query
-                    .reply(query.key_expr().clone(), model_json.clone())
-                    .encoding(zenoh::bytes::Encoding::APPLICATION_JSON)
-                    .wait();
-            })
-            .wait()
-            .map_err(|e| anyhow::anyhow!("cannot declare the Zenoh model queryable: {e}"))?;
+        let stats_id = id.clone();
+        let stats = answer_queries(&session, ipc.zenoh_stats_key(), move || {
+            // Serialise under the lock (microseconds), reply outside it.
+            let s = reader.lock().unwrap_or_else(|e| e.into_inner());
+            s.to_json(&stats_id)
+        })?;
+        let model_json = serde_json::to_string(&ModelReply {
+            meta: model.meta(),
+            model_id: model.id(),
+            daemon: &id,
+        })
+        .context("cannot serialise the model metadata")?;
+        let model = answer_queries(&session, ipc.zenoh_model_key(), move || model_json.clone())?;
         info!(
-            presence = %ipc.zenoh_presence_key(&zid),
+            presence = %ipc.zenoh_presence_key(&id.zid),
             stats = %ipc.zenoh_stats_key(),
             model = %ipc.zenoh_model_key(),
             "zenoh presence and queryables declared"
@@ -272,43 +302,78 @@ impl ZenohSide {
         })
     }
 
-    /// Refreshes the snapshot of `source` unless a query is reading it right now.
-    pub(crate) fn refresh(
-        &self,
-        source: &str,
-        counters: &Counters,
-        last: Option<HeadingEstimate>,
-        ring: &LatencyRing,
-    ) {
-        let Ok(mut shared) = self.shared.try_lock() else {
-            return;
-        };
-        match shared.sources.get_mut(source) {
-            Some(s) => {
-                s.counters = *counters;
-                s.last = last;
-                s.latencies.copy_from_slice(&ring.ns[..]);
-                s.latency_len = ring.len;
-            }
-            None => {
-                shared.sources.insert(
-                    source.to_owned(),
-                    SourceSnapshot {
-                        counters: *counters,
-                        last,
-                        latencies: ring.ns.clone(),
-                        latency_len: ring.len,
-                    },
-                );
-            }
+    /// Refreshes the snapshot of a served `source` unless a query is reading it right
+    /// now (the loop never waits for a query; the next wake-up refreshes again).
+    pub(crate) fn refresh(&self, source: &str, state: &State) {
+        if let Ok(mut shared) = self.shared.try_lock() {
+            shared.write(source, state, true);
         }
     }
 
-    /// Forgets a source that is no longer served (its counters stay in the log).
-    pub(crate) fn forget(&self, source: &str) {
+    /// Records a change of the set of sources: `source` is served from now on (or no
+    /// longer, `served: false`), with `state` as it is, and the add/remove totals that
+    /// include this change, under one lock so that no query sees one without the other.
+    /// Waits for the lock: a change is rare, and must not be lost.
+    pub(crate) fn set_served(&self, source: &str, state: &State, served: bool, totals: (u64, u64)) {
         let mut shared = self.shared.lock().unwrap_or_else(|e| e.into_inner());
-        shared.sources.remove(source);
+        shared.write(source, state, served);
+        (shared.sources_added, shared.sources_removed) = totals;
     }
+
+    /// Records the sources that cannot be served (name → reason) and the add/remove
+    /// totals.
+    pub(crate) fn set_roster(&self, unserved: &BTreeMap<String, String>, added: u64, removed: u64) {
+        let mut shared = self.shared.lock().unwrap_or_else(|e| e.into_inner());
+        shared.unserved.clone_from(unserved);
+        (shared.sources_added, shared.sources_removed) = (added, removed);
+    }
+}
+
+/// Opens the Zenoh session of `section` and logs what it listens on.
+fn open_session(section: &ZenohSection) -> anyhow::Result<zenoh::Session> {
+    let mut section = section.clone();
+    section.listen = section
+        .listen
+        .iter()
+        .map(|e| resolve_port_zero(e))
+        .collect::<anyhow::Result<_>>()?;
+    let config = section.zenoh_config()?;
+    let session = zenoh::open(config).wait().map_err(|e| {
+        anyhow::anyhow!(
+            "zenoh.listen {:?}: cannot open the Zenoh session: {e}",
+            section.listen
+        )
+    })?;
+    info!(
+        zid = %session.zid(),
+        mode = %section.mode,
+        listening = ?section.listen,
+        connect = ?section.connect,
+        multicast_scouting = section.multicast_scouting,
+        gossip = section.gossip,
+        config_file = ?section.config_file,
+        "zenoh session open"
+    );
+    Ok(session)
+}
+
+/// A queryable on `key` that answers every query with `answer()` as JSON, on Zenoh's
+/// threads.
+fn answer_queries(
+    session: &zenoh::Session,
+    key: String,
+    answer: impl Fn() -> String + Send + Sync + 'static,
+) -> anyhow::Result<zenoh::query::Queryable<()>> {
+    session
+        .declare_queryable(key.clone())
+        .callback(move |query| {
+            let _ = query
+                .reply(query.key_expr().clone(), answer())
+                .encoding(zenoh::bytes::Encoding::APPLICATION_JSON)
+                .wait();
+        })
+        .wait()
+        .map_err(|e| anyhow::anyhow!("cannot declare the Zenoh queryable {key}: {e}"))
 }
 
 /// `tcp/<ip>:0` → `tcp/<ip>:<a free port>`, so the log (and whoever reads it, e.g.

@@ -13,11 +13,12 @@
 //! The Zenoh payload decoder is fuzzed in `client/src/codec.rs`, the CSV, model-file
 //! and model-metadata parsers in `models/lab/tests/fuzz.rs`.
 
+mod common;
+
 use std::cell::Cell;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
 
-use ghnet_client::testing::TestNamespace;
+use common::{next_answer, InProcess};
 use ghnet_client::{
     flags, HeadingEstimate, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample,
 };
@@ -283,31 +284,15 @@ proptest! {
 /// per sample, then the daemon's own counters agree.
 #[test]
 fn daemon_answers_arbitrary_samples_exactly_once() {
-    let ns = TestNamespace::new("fuzz");
-    let mut config = Config::default();
-    config.ipc.iceoryx2_global_prefix = Some(ns.global_prefix().into());
-    config.ipc.iceoryx2_root_path = Some(ns.root_path().into());
-    config.sources.static_sources = vec!["f".into()];
-    config.sources.discovery = false;
-    config.stats.interval_s = 0;
-    config.zenoh.enabled = false;
-    let shutdown = ghnetd::ShutdownFlag::new();
-    let daemon = std::thread::spawn({
-        let shutdown = shutdown.clone();
-        move || ghnetd::run(config, shutdown)
+    let mut daemon = InProcess::start("fuzz", |c| {
+        c.sources.static_sources = vec!["f".into()];
+        c.sources.discovery = false;
+        c.zenoh.enabled = false;
     });
-
-    let ipc = ns.ipc();
+    let ipc = daemon.ipc();
     let headings = HeadingSubscriber::new(&ipc, "f").unwrap();
     let gnss = VelocityPublisher::new(&ipc, "f").unwrap();
-    let t0 = Instant::now();
-    while gnss.subscriber_count() == 0 {
-        assert!(
-            !daemon.is_finished() && t0.elapsed() < Duration::from_secs(60),
-            "daemon never subscribed"
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    daemon.wait_serving(&gnss);
 
     let (sent, invalid) = (Cell::new(0u64), Cell::new(0u64));
     let mut runner = TestRunner::new(PtConfig {
@@ -319,16 +304,8 @@ fn daemon_answers_arbitrary_samples_exactly_once() {
             for s in &samples {
                 gnss.send(*s).unwrap();
                 sent.set(sent.get() + 1);
-                let h = loop {
-                    let h = headings
-                        .recv_timeout(Duration::from_secs(60))
-                        .unwrap()
-                        .expect("watchdog: an answer");
-                    // A Stale notice is not an answer (a loaded machine may pause).
-                    if h.heading_status() != Some(HeadingStatus::Stale) {
-                        break h;
-                    }
-                };
+                // A Stale notice is not an answer (a loaded machine may pause).
+                let h = next_answer(&headings);
                 check_answer(s, &h)?;
                 invalid.set(
                     invalid.get()
@@ -339,8 +316,7 @@ fn daemon_answers_arbitrary_samples_exactly_once() {
         })
         .unwrap();
 
-    shutdown.request();
-    let stats = daemon.join().unwrap().unwrap();
+    let stats = daemon.stop();
     let c = stats.sources["f"];
     assert_eq!(c.received, sent.get(), "{c:?}");
     assert_eq!(c.received, c.answered + c.send_errors, "{c:?}");

@@ -62,7 +62,7 @@ HEADING = struct.Struct("<QQQffffII16s")
 HEADING_FIELDS = ("timestamp_ns", "seq", "processing_ns", "heading_deg",
                   "heading_std_deg", "atan2_deg", "speed", "model_id", "status",
                   "model_name")
-STATUS = {0: "Ok", 1: "LowSpeed", 2: "Stationary", 3: "InvalidInput", 4: "Stale"}
+STATUS = {0: "Ok", 1: "LowSpeed", 2: "Stationary", 3: "InvalidInput", 4: "Stale", 5: "Held"}
 assert HEADING.size == 64
 
 

@@ -28,6 +28,7 @@ fn wire(s: Status) -> HeadingStatus {
         Status::LowSpeed => HeadingStatus::LowSpeed,
         Status::Stationary => HeadingStatus::Stationary,
         Status::Invalid => HeadingStatus::InvalidInput,
+        Status::Held => HeadingStatus::Held,
     }
 }
 

@@ -69,6 +69,25 @@ pub enum Head {
         /// Trained heading range `[lo, hi]`, degrees; `[0, 360]` for the full circle.
         range_deg: [f32; 2],
     },
+    /// The temporal models' learned filter step over the previous output `ψₚ`: the
+    /// network corrects a Kalman step. With that step's prior variance `P` and
+    /// measurement variance `R²` ([`KalmanBase`]) and gain `K = P/(P + R²)`: a gain
+    /// `g = clamp(K + y₀/4, 0, 1)`, a reverse switch `r = [y₁ > 0]`,
+    /// `ψ = ψₚ + g·wrap(A + r·π − ψₚ)` and `log σ = ½·ln((1−g)²P + g²R²) + y₂`
+    /// ([`filter_step`]). The history keeps the step's own variance, without `y₂`, so a
+    /// correction of the reported σ never compounds through the recurrence. Zero
+    /// outputs (and the switch off) are exactly the Kalman
+    /// filter, so training starts from the baseline and learns what it misses: backing
+    /// up, when to trust a slow course, σ. A gain of exactly
+    /// 1 returns atan2 exactly (no bias at speed, nothing to learn about `v/|v|`); a gain
+    /// of exactly 0 holds the heading through a stop of any length (a logistic gain is
+    /// never 0, and 1% of a noise course per epoch drifts tens of degrees over a minute
+    /// at 10 Hz); the switch follows a course opposite to the heading, as when a car
+    /// backs up. The gain learns from the heading error, the
+    /// switch by classification (is the course opposite to the true heading?), because
+    /// a soft mixture of the two directions leaks a fraction of 180° into every answer.
+    /// Without a previous output (the first epoch of a history) `ψₚ = A`.
+    Filter,
 }
 
 /// Wrap radians to (−π, π].
@@ -131,6 +150,7 @@ impl Head {
             Head::Angle { .. } => 2,
             Head::Blend { .. } => 3,
             Head::Residual { .. } => 4,
+            Head::Filter => 3,
         }
     }
 
@@ -146,6 +166,7 @@ impl Head {
                 half_range_deg,
             } => (centre_deg - half_range_deg, centre_deg + half_range_deg),
             Head::Residual { range_deg } => (range_deg[0], range_deg[1]),
+            Head::Filter => (0.0, 360.0),
         }
     }
 
@@ -171,6 +192,17 @@ impl Head {
                 let w = sigmoid(y[1]);
                 (a + w * wrap_rad(theta - a), y[2])
             }
+            Head::Filter => {
+                // No prior: the course, with the network's σ around a uniform error.
+                let a = v_east.atan2(v_north);
+                let cap = MAX_STD_DEG.to_radians();
+                let base = KalmanBase {
+                    p: cap * cap,
+                    r2: cap * cap,
+                };
+                let (psi, ls, _, _) = filter_step(y, a, a, &base);
+                (psi, ls + y[2])
+            }
         }
     }
 
@@ -194,6 +226,58 @@ impl Head {
         let sigma = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX).exp() * sigma_scale;
         (deg, sigma.to_degrees().min(MAX_STD_DEG))
     }
+}
+
+/// The Kalman step a temporal model corrects: prior variance `p` and measurement
+/// variance `r2` (radians²) of one epoch.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KalmanBase {
+    /// Prior variance: the previous σ² plus `q²·dt`, capped at a uniform error's.
+    pub p: f32,
+    /// Measurement variance `(σ_v/ŝ)²`; a velocity within its own noise gets the cap
+    /// and no weight.
+    pub r2: f32,
+}
+
+impl KalmanBase {
+    /// The step's gain `P/(P + R²)` (0 when the measurement carries nothing).
+    pub fn gain(&self) -> f32 {
+        let cap = MAX_STD_DEG.to_radians();
+        if self.r2 >= cap * cap * 0.999 {
+            0.0
+        } else {
+            self.p / (self.p + self.r2)
+        }
+    }
+
+    /// `ln σ` after a step with gain `g`: `½·ln((1−g)²P + g²R²)`.
+    pub fn log_sigma(&self, g: f32) -> f32 {
+        let v = (1.0 - g) * (1.0 - g) * self.p + g * g * self.r2;
+        0.5 * v.max(1e-12).ln()
+    }
+}
+
+/// The filter head's gain from its first output around the Kalman gain `k`:
+/// `clamp(k + y/4, 0, 1)`, which reaches 0 (hold) and 1 (follow) exactly.
+#[inline]
+pub fn filter_gain(y: f32, k: f32) -> f32 {
+    (k + 0.25 * y).clamp(0.0, 1.0)
+}
+
+/// One filter step ([`Head::Filter`]): from outputs `y`, the course `course = atan2(v_E,
+/// v_N)`, the previous heading `prior` (radians) and the Kalman step `base`, the heading
+/// (radians, not wrapped), the step's own `log σ` (what the history keeps; the reported
+/// one adds `y₂`), the gain and the innovation `wrap(A + r·π − ψₚ)`.
+#[inline]
+pub fn filter_step(y: &[f32], course: f32, prior: f32, base: &KalmanBase) -> (f32, f32, f32, f32) {
+    let g = filter_gain(y[0], base.gain());
+    let z = if y[1] > 0.0 {
+        course + std::f32::consts::PI
+    } else {
+        course
+    };
+    let d = wrap_rad(z - prior);
+    (prior + g * d, base.log_sigma(g), g, d)
 }
 
 /// Scale velocities into the network's input: divided by the model's `input_scale_mps`,

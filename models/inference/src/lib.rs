@@ -13,8 +13,11 @@
 //!   FMA loop benches compare against.
 //! - [`head`]: how outputs become a heading and σ (decoding only; the lab has the losses).
 //! - [`weights`]: safetensors files with PyTorch names and ghnet metadata.
-//! - [`model`]: [`Model`] (loaded, shareable) and [`Predictor`] (per thread, no allocation),
-//!   and the embedded models ([`model::BUILTIN`], [`DEFAULT_MODEL`]).
+//! - [`model`]: [`Model`] (loaded, shareable) and [`Predictor`] (per thread, no allocation,
+//!   no history), and the embedded models ([`model::BUILTIN`], [`DEFAULT_MODEL`]).
+//! - [`stream`]: [`StreamPredictor`] and the per-source [`History`]: temporal models and
+//!   the Kalman filter `kf`, answered one epoch at a time with bounded state, the history
+//!   rules (gap, time backwards, explicit reset) and the `Held` status.
 //!
 //! This crate knows nothing about IPC: the daemon wires it to the transports.
 //!
@@ -27,8 +30,10 @@ pub mod model;
 pub mod net;
 pub mod params;
 pub mod simd;
+pub mod stream;
 pub mod weights;
 
 pub use model::{Model, ModelError, Prediction, Predictor, Status, StatusPolicy, DEFAULT_MODEL};
 pub use params::Arch;
+pub use stream::{Epoch, History, Reset, ResetCounts, StreamPredictor};
 pub use weights::ModelMeta;

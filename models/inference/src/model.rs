@@ -9,30 +9,51 @@ use std::sync::Arc;
 use faer::Mat;
 
 use crate::head::{accuracy_sigma_base, heading_deg, scale_input, Head, MAX_STD_DEG};
-use crate::net::{Network, Scratch};
+use crate::net::{collapse_fc, Network, Scratch};
 use crate::params::ParamSet;
-use crate::weights::{self, ModelMeta, WeightsError};
+use crate::stream::{Epoch, History, StreamPredictor, WindowHead};
+use crate::weights::{self, ModelKind, ModelMeta, WeightsError};
 
-/// The models compiled into every binary, by name. `ghnet-full` is the default.
-pub const BUILTIN: [(&str, &[u8]); 2] = [
+/// The models compiled into every binary, by name. `ghnet-temporal` is the default;
+/// `kf` is the model-free Kalman filter baseline (parameters only).
+pub const BUILTIN: [(&str, &[u8]); 4] = [
     (
-        "ghnet-full",
-        include_bytes!("../weights/ghnet-full.safetensors").as_slice(),
+        "ghnet-temporal",
+        include_bytes!("../weights/ghnet-temporal.safetensors").as_slice(),
+    ),
+    (
+        "ghnet-epoch",
+        include_bytes!("../weights/ghnet-epoch.safetensors").as_slice(),
     ),
     (
         "paper-s1",
         include_bytes!("../weights/paper-s1.safetensors").as_slice(),
     ),
+    ("kf", include_bytes!("../weights/kf.safetensors").as_slice()),
 ];
 
-/// Name of the default model.
-pub const DEFAULT_MODEL: &str = "ghnet-full";
+/// Names older configurations used, and the built-in model each now means: the
+/// per-epoch full-circle model was `ghnet-full` before temporal models existed.
+pub const ALIASES: [(&str, &str); 1] = [("ghnet-full", "ghnet-epoch")];
+
+/// The built-in name `name` stands for (itself unless it is an alias).
+fn resolve(name: &str) -> &str {
+    ALIASES
+        .iter()
+        .find(|(a, _)| *a == name)
+        .map_or(name, |(_, m)| *m)
+}
+
+/// Name of the default model. The per-epoch `ghnet-epoch` until ghnetd keeps a history
+/// per source (a stateful model answered without one would treat every sample as the
+/// first of a track).
+pub const DEFAULT_MODEL: &str = "ghnet-epoch";
 
 /// Why a model could not be had.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelError {
     /// The name is neither built in nor an existing file.
-    #[error("unknown model `{0}`: not a built-in model (ghnet-full, paper-s1) and no such file")]
+    #[error("unknown model `{0}`: not a built-in model (ghnet-temporal, ghnet-epoch, paper-s1, kf) and no such file")]
     Unknown(String),
     /// The file or embedded bytes are malformed.
     /// (The cause is part of the message and deliberately not a `source()`, so a
@@ -46,19 +67,46 @@ pub enum ModelError {
     },
 }
 
+/// What computes a model's answers, made once when it is loaded.
+#[derive(Debug, Clone)]
+pub enum Engine {
+    /// A per-epoch network (the paper's).
+    Epoch(Network),
+    /// A temporal network: the per-epoch feature convolutions and the head over the
+    /// window of cached features.
+    Temporal {
+        /// Batch norm folded into the convolutions; its outputs are the features.
+        features: Network,
+        /// The fully connected layers collapsed over the window.
+        head: WindowHead,
+    },
+    /// The model-free circular Kalman filter (parameters in the metadata's `kind`).
+    Kf,
+}
+
 /// A loaded model: folded network, head, metadata and the unfolded weights it came from.
 #[derive(Debug, Clone)]
 pub struct Model {
     meta: ModelMeta,
     params: ParamSet,
-    net: Network,
+    engine: Engine,
     id: u32,
 }
 
 impl Model {
     /// Build from weights and metadata (folding batch norm once, here).
     pub fn new(params: ParamSet, meta: ModelMeta) -> Self {
-        let net = Network::fold(&params);
+        let engine = match meta.kind {
+            ModelKind::Epoch => Engine::Epoch(Network::fold(&params)),
+            ModelKind::Kf { .. } => Engine::Kf,
+            ModelKind::Temporal { .. } => {
+                let (w, b) = collapse_fc(&params);
+                Engine::Temporal {
+                    features: Network::fold(&params),
+                    head: WindowHead::new(w.as_ref(), &b, params.arch().window),
+                }
+            }
+        };
         let mut h: u32 = 0x811c_9dc5; // FNV-1a over name and weights: a stable wire id
         for b in meta
             .name
@@ -71,13 +119,14 @@ impl Model {
         Self {
             meta,
             params,
-            net,
+            engine,
             id: h,
         }
     }
 
     /// A built-in model by name.
     pub fn builtin(name: &str) -> Result<Self, ModelError> {
+        let name = resolve(name);
         let bytes = BUILTIN
             .iter()
             .find(|(n, _)| *n == name)
@@ -106,7 +155,7 @@ impl Model {
 
     /// A built-in name, or else a path to a safetensors file.
     pub fn from_name_or_path(s: &str) -> Result<Self, ModelError> {
-        if BUILTIN.iter().any(|(n, _)| *n == s) {
+        if BUILTIN.iter().any(|(n, _)| *n == resolve(s)) {
             return Self::builtin(s);
         }
         let p = Path::new(s);
@@ -137,9 +186,25 @@ impl Model {
         &self.params
     }
 
-    /// The folded network.
-    pub fn network(&self) -> &Network {
-        &self.net
+    /// The folded network: the whole network of a per-epoch model, the per-epoch
+    /// feature convolutions of a temporal one, none for the Kalman filter.
+    pub fn network(&self) -> Option<&Network> {
+        match &self.engine {
+            Engine::Epoch(n) => Some(n),
+            Engine::Temporal { features, .. } => Some(features),
+            Engine::Kf => None,
+        }
+    }
+
+    /// What computes the answers.
+    pub fn engine(&self) -> &Engine {
+        &self.engine
+    }
+
+    /// Whether answers depend on the source's history (temporal models and the Kalman
+    /// filter): run them with [`StreamPredictor`] and one [`History`] per source.
+    pub fn is_stateful(&self) -> bool {
+        !matches!(self.engine, Engine::Epoch(_))
     }
 
     /// The output head.
@@ -167,6 +232,10 @@ pub enum Status {
     Stationary,
     /// The input was not a usable velocity (NaN, infinite, absurd): no heading.
     Invalid,
+    /// Stopped, and the heading is the one held from the source's history (stateful
+    /// models only); σ grows with the time stopped. Usable with its σ: a parked car
+    /// keeps pointing where it stopped.
+    Held,
 }
 
 impl Status {
@@ -177,6 +246,7 @@ impl Status {
             Status::LowSpeed => "low_speed",
             Status::Stationary => "stationary",
             Status::Invalid => "invalid",
+            Status::Held => "held",
         }
     }
 }
@@ -231,15 +301,59 @@ impl Prediction {
     };
 }
 
-/// Runs a model; owns the scratch so calls allocate nothing. One per thread.
+/// The answer of a per-epoch model from its outputs `y`: decoded heading, σ (from the
+/// receiver's speed accuracy where the model uses it) and status. Shared by
+/// [`Predictor`] and [`StreamPredictor`].
+pub(crate) fn finish_epoch(
+    model: &Model,
+    policy: &StatusPolicy,
+    y: &[f32],
+    v_north: f32,
+    v_east: f32,
+    speed: f32,
+    acc: f32,
+) -> Prediction {
+    let meta = model.meta();
+    let (heading, mut std) = meta.head.decode(y, v_north, v_east, meta.sigma_scale);
+    if meta.accuracy_sigma_scale.is_finite() {
+        if let Some(base) = accuracy_sigma_base(v_north, v_east, acc) {
+            std = (meta.accuracy_sigma_scale * base)
+                .to_degrees()
+                .min(MAX_STD_DEG);
+        }
+    }
+    let status = if speed < policy.stationary_speed {
+        Status::Stationary
+    } else if std.is_nan() || std > policy.max_std_deg {
+        Status::LowSpeed
+    } else {
+        Status::Ok
+    };
+    Prediction {
+        heading_deg: heading,
+        std_deg: std,
+        atan2_deg: heading_deg(v_north, v_east),
+        speed,
+        status,
+    }
+}
+
+/// Runs a model one sample at a time with no history; owns the scratch so calls
+/// allocate nothing. One per thread.
+///
+/// For per-epoch models this is the whole story. A stateful model (temporal, `kf`) run
+/// here sees every sample as the first of its history, which is what it answers after a
+/// reset: atan2 with a σ, never `Held`. Use [`StreamPredictor`] with one [`History`]
+/// per source to get what history buys.
 #[derive(Debug)]
 pub struct Predictor {
     model: Arc<Model>,
     policy: StatusPolicy,
-    scratch: Scratch,
+    scratch: Option<Scratch>,
     out: Vec<f32>,
     xb: Mat<f32>,
     yb: Mat<f32>,
+    stream: Option<(StreamPredictor, History)>,
 }
 
 /// Batch size the predictor's scratch is sized for; larger batches run in chunks.
@@ -248,13 +362,23 @@ const BATCH_CHUNK: usize = 256;
 impl Predictor {
     /// A predictor for `model` with the default [`StatusPolicy`].
     pub fn new(model: Arc<Model>) -> Self {
-        let net = model.network();
+        let (net, stream) = match model.engine() {
+            Engine::Epoch(net) => (Some(net), None),
+            _ => {
+                let sp = StreamPredictor::new(model.clone());
+                let h = sp.history();
+                (None, Some((sp, h)))
+            }
+        };
+        let k = net.map_or(1, |n| n.outputs());
+        let cols = if net.is_some() { BATCH_CHUNK } else { 0 };
         Self {
-            scratch: net.scratch(BATCH_CHUNK),
-            out: vec![0.0; net.outputs()],
-            xb: Mat::zeros(2, BATCH_CHUNK),
-            yb: Mat::zeros(net.outputs(), BATCH_CHUNK),
+            scratch: net.map(|n| n.scratch(BATCH_CHUNK)),
+            out: vec![0.0; k],
+            xb: Mat::zeros(2, cols),
+            yb: Mat::zeros(k, cols),
             policy: StatusPolicy::default(),
+            stream,
             model,
         }
     }
@@ -262,6 +386,9 @@ impl Predictor {
     /// Replace the status thresholds.
     pub fn with_policy(mut self, policy: StatusPolicy) -> Self {
         self.policy = policy;
+        if let Some((sp, h)) = self.stream.take() {
+            self.stream = Some((sp.with_policy(policy), h));
+        }
         self
     }
 
@@ -282,31 +409,19 @@ impl Predictor {
             .then_some(speed)
     }
 
-    #[inline]
-    fn finish(&self, y: &[f32], v_north: f32, v_east: f32, speed: f32, acc: f32) -> Prediction {
-        let meta = self.model.meta();
-        let (heading, mut std) = meta.head.decode(y, v_north, v_east, meta.sigma_scale);
-        if meta.accuracy_sigma_scale.is_finite() {
-            if let Some(base) = accuracy_sigma_base(v_north, v_east, acc) {
-                std = (meta.accuracy_sigma_scale * base)
-                    .to_degrees()
-                    .min(MAX_STD_DEG);
-            }
-        }
-        let status = if speed < self.policy.stationary_speed {
-            Status::Stationary
-        } else if std.is_nan() || std > self.policy.max_std_deg {
-            Status::LowSpeed
-        } else {
-            Status::Ok
-        };
-        Prediction {
-            heading_deg: heading,
-            std_deg: std,
-            atan2_deg: heading_deg(v_north, v_east),
-            speed,
-            status,
-        }
+    /// A stateful model's answer to one sample as the first of a fresh history.
+    fn stateless(&mut self, v_north: f32, v_east: f32, speed_acc: f32) -> Option<Prediction> {
+        let (sp, h) = self.stream.as_mut()?;
+        h.clear_uncounted();
+        Some(sp.predict(
+            h,
+            &Epoch {
+                t_s: 0.0,
+                v_north,
+                v_east,
+                speed_acc,
+            },
+        ))
     }
 
     /// One sample. Never panics: bad input gives [`Status::Invalid`]. σ is the network's.
@@ -324,6 +439,9 @@ impl Predictor {
         v_east: f32,
         speed_acc: f32,
     ) -> Prediction {
+        if let Some(p) = self.stateless(v_north, v_east, speed_acc) {
+            return p;
+        }
         let Some(speed) = self.validate(v_north, v_east) else {
             return Prediction {
                 speed: v_north.hypot(v_east),
@@ -331,13 +449,20 @@ impl Predictor {
             };
         };
         let x = scale_input(v_north, v_east, self.model.meta().input_scale_mps);
-        let mut out = std::mem::take(&mut self.out);
-        self.model
-            .network()
-            .forward_one(&x, &mut out, &mut self.scratch);
-        let p = self.finish(&out, v_north, v_east, speed, speed_acc);
-        self.out = out;
-        p
+        let Engine::Epoch(net) = self.model.engine() else {
+            unreachable!("stateful models answered above")
+        };
+        let scratch = self.scratch.as_mut().expect("per-epoch scratch");
+        net.forward_one(&x, &mut self.out, scratch);
+        finish_epoch(
+            &self.model,
+            &self.policy,
+            &self.out,
+            v_north,
+            v_east,
+            speed,
+            speed_acc,
+        )
     }
 
     /// Many samples through the batch path; `out[i]` answers `(v_north[i], v_east[i])`.
@@ -374,8 +499,21 @@ impl Predictor {
             v_north.len() == v_east.len() && v_east.len() == out.len(),
             "predict_batch: slices must have equal length"
         );
-        let scale = self.model.meta().input_scale_mps;
-        let k = self.model.network().outputs();
+        if self.stream.is_some() {
+            for (i, o) in out.iter_mut().enumerate() {
+                let acc = speed_acc.map_or(f32::NAN, |a| a[i]);
+                *o = self
+                    .stateless(v_north[i], v_east[i], acc)
+                    .expect("stateful model");
+            }
+            return;
+        }
+        let model = self.model.clone();
+        let Engine::Epoch(net) = model.engine() else {
+            unreachable!("stateful models answered above")
+        };
+        let scale = model.meta().input_scale_mps;
+        let k = net.outputs();
         let mut y = [0.0f32; 8];
         let mut start = 0;
         while start < out.len() {
@@ -390,10 +528,10 @@ impl Predictor {
                 self.xb[(0, j)] = x[0];
                 self.xb[(1, j)] = x[1];
             }
-            self.model.network().forward(
+            net.forward(
                 self.xb.as_ref().subcols(0, len),
                 self.yb.as_mut().subcols_mut(0, len),
-                &mut self.scratch,
+                self.scratch.as_mut().expect("per-epoch scratch"),
             );
             for j in 0..len {
                 let (vn, ve) = (v_north[start + j], v_east[start + j]);
@@ -403,7 +541,7 @@ impl Predictor {
                             *yk = self.yb[(kk, j)];
                         }
                         let acc = speed_acc.map_or(f32::NAN, |a| a[start + j]);
-                        self.finish(&y[..k], vn, ve, speed, acc)
+                        finish_epoch(&model, &self.policy, &y[..k], vn, ve, speed, acc)
                     }
                     None => Prediction {
                         speed: vn.hypot(ve),

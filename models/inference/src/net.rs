@@ -101,6 +101,11 @@ impl Scratch {
 
 impl Network {
     /// Fold batch norm into the convolutions and collapse the linear head.
+    ///
+    /// For a temporal architecture (`window > 1`) the result is the per-epoch feature
+    /// extractor only (the convolutions; its outputs are the last conv layer's
+    /// channels): the head over the window is [`collapse_fc`], applied by the streaming
+    /// predictor to the cached features of the last `window` epochs.
     pub fn fold(params: &ParamSet) -> Self {
         let arch = params.arch().clone();
         let mut layers = Vec::with_capacity(arch.conv.len() + 1);
@@ -124,27 +129,10 @@ impl Network {
             k = d.rows_padded();
             layers.push(d);
         }
-        // Collapse fc layers: start with fc1 and compose.
-        let n_fc = arch.fc.len() + 1;
-        let mut w: Mat<f64> = {
-            let t = params.matrix_t("fc1.weight");
-            Mat::from_fn(t.ncols(), t.nrows(), |o, i| t[(i, o)] as f64)
-        };
-        let mut b: Vec<f64> = params.get("fc1.bias").iter().map(|&v| v as f64).collect();
-        for l in 2..=n_fc {
-            let t = params.matrix_t(&format!("fc{l}.weight"));
-            let wl = Mat::from_fn(t.ncols(), t.nrows(), |o, i| t[(i, o)] as f64);
-            let bl = params.get(&format!("fc{l}.bias"));
-            let new_w = &wl * &w;
-            let new_b = (0..wl.nrows())
-                .map(|o| bl[o] as f64 + (0..wl.ncols()).map(|i| wl[(o, i)] * b[i]).sum::<f64>())
-                .collect();
-            w = new_w;
-            b = new_b;
+        if arch.window <= 1 {
+            let (head_w, head_b) = collapse_fc(params);
+            layers.push(Dense::new(head_w.as_ref(), &head_b, k));
         }
-        let head_w = Mat::from_fn(w.nrows(), w.ncols(), |i, j| w[(i, j)] as f32);
-        let head_b: Vec<f32> = b.into_iter().map(|v| v as f32).collect();
-        layers.push(Dense::new(head_w.as_ref(), &head_b, k));
         Self {
             arch,
             kernel: Kernel::detect(),
@@ -223,7 +211,8 @@ impl Network {
         );
     }
 
-    /// Forward one sample: `x` is the scaled input (length 2), `out` receives the outputs.
+    /// Forward one sample: `x` is the scaled input (length `arch.input`), `out` receives
+    /// the outputs.
     pub fn forward_one(&self, x: &[f32], out: &mut [f32], scratch: &mut Scratch) {
         self.check_scratch(scratch);
         assert_eq!(x.len(), self.arch.input, "input length");
@@ -280,6 +269,34 @@ impl Network {
     }
 }
 
+/// The fully connected layers collapsed into one affine map `(W, b)`, `W` of shape
+/// `output × fc1 inputs`: exact, because the paper puts no activation between them and
+/// dropout is the identity at inference. Composed in f64 so the collapse adds no error
+/// worth measuring.
+pub fn collapse_fc(params: &ParamSet) -> (Mat<f32>, Vec<f32>) {
+    let n_fc = params.arch().fc.len() + 1;
+    let mut w: Mat<f64> = {
+        let t = params.matrix_t("fc1.weight");
+        Mat::from_fn(t.ncols(), t.nrows(), |o, i| t[(i, o)] as f64)
+    };
+    let mut b: Vec<f64> = params.get("fc1.bias").iter().map(|&v| v as f64).collect();
+    for l in 2..=n_fc {
+        let t = params.matrix_t(&format!("fc{l}.weight"));
+        let wl = Mat::from_fn(t.ncols(), t.nrows(), |o, i| t[(i, o)] as f64);
+        let bl = params.get(&format!("fc{l}.bias"));
+        let new_w = &wl * &w;
+        let new_b = (0..wl.nrows())
+            .map(|o| bl[o] as f64 + (0..wl.ncols()).map(|i| wl[(o, i)] * b[i]).sum::<f64>())
+            .collect();
+        w = new_w;
+        b = new_b;
+    }
+    (
+        Mat::from_fn(w.nrows(), w.ncols(), |i, j| w[(i, j)] as f32),
+        b.into_iter().map(|v| v as f32).collect(),
+    )
+}
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 unsafe fn run_avx512(net: &Network, n: usize, scratch: &mut Scratch) {
@@ -303,7 +320,13 @@ unsafe fn run_avx2(net: &Network, n: usize, scratch: &mut Scratch) {
 unsafe fn run_v<V: Simd, const NR: usize>(net: &Network, n: usize, scratch: &mut Scratch) {
     let mut x = scratch.input.as_slice().as_ptr();
     let mut xs = net.arch.input;
-    let last = net.layers.len() - 1;
+    // A temporal network's layers are all convolutions (GELU after each); a per-epoch
+    // network ends with the collapsed linear head.
+    let last = if net.arch.window > 1 {
+        usize::MAX
+    } else {
+        net.layers.len() - 1
+    };
     for (l, d) in net.layers.iter().enumerate() {
         let y = scratch.acts[l].as_mut_slice().as_mut_ptr();
         if l < last {
@@ -481,6 +504,7 @@ mod tests {
             conv: vec![2],
             fc: vec![1],
             output: 1,
+            window: 1,
         };
         let mut p = ParamSet::zeros(&arch);
         p.get_mut("conv1.weight")
@@ -611,7 +635,7 @@ mod tests {
 
     #[test]
     fn every_kernel_matches_f64_reference_on_shipped_model() {
-        let model = crate::Model::builtin("ghnet-full").expect("embedded model");
+        let model = crate::Model::builtin("ghnet-epoch").expect("embedded model");
         check_against_reference(model.params(), 2e-5);
     }
 
@@ -624,6 +648,7 @@ mod tests {
             conv: vec![5, 17, 40, 33],
             fc: vec![9],
             output: 2,
+            window: 1,
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let mut p = ParamSet::init(&arch, |b| rng.random_range(-b..b));
@@ -640,12 +665,15 @@ mod tests {
 
     #[test]
     fn scratch_of_another_shape_is_refused() {
-        let model = crate::Model::builtin("ghnet-full").expect("embedded model");
+        let model = crate::Model::builtin("ghnet-epoch").expect("embedded model");
         let small = Network::fold(&ParamSet::init(&Arch::tiny(3), |b| b / 2.0));
         let mut s = small.scratch(4);
-        let mut out = vec![0.0; model.network().outputs()];
+        let mut out = vec![0.0; model.network().unwrap().outputs()];
         let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            model.network().forward_one(&[0.1, 0.2], &mut out, &mut s)
+            model
+                .network()
+                .unwrap()
+                .forward_one(&[0.1, 0.2], &mut out, &mut s)
         }));
         let msg = r.expect_err("mismatched scratch must be refused");
         assert!(format!("{:?}", msg.downcast_ref::<&str>()).contains("another shape"));

@@ -27,6 +27,20 @@ pub struct Arch {
     pub fc: Vec<usize>,
     /// Network outputs; depends on the head (2 for `angle`, 3 for `residual`).
     pub output: usize,
+    /// Epochs the fully connected head sees at once: 1 for the per-epoch models (the
+    /// paper's), `W` for a temporal model, whose head flattens the last conv layer's
+    /// features of the `W` most recent epochs (newest first), so `fc1` has
+    /// `W·conv.last()` inputs. Absent in files of per-epoch models.
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub window: usize,
+}
+
+fn one() -> usize {
+    1
+}
+
+fn is_one(w: &usize) -> bool {
+    *w == 1
 }
 
 impl Arch {
@@ -37,6 +51,18 @@ impl Arch {
             conv: vec![24, 48, 96, 192, 48],
             fc: vec![60, 10, 5],
             output,
+            window: 1,
+        }
+    }
+
+    /// Table I over a causal window: `inputs` per-epoch features through the same five
+    /// kernel-1 convolutions, then the fully connected 60, 10, 5 and `output` over the
+    /// flattened features of the last `window` epochs.
+    pub fn temporal(inputs: usize, window: usize, output: usize) -> Self {
+        Self {
+            input: inputs,
+            window,
+            ..Self::paper(output)
         }
     }
 
@@ -47,13 +73,14 @@ impl Arch {
             conv: vec![6, 8, 5],
             fc: vec![7, 4],
             output,
+            window: 1,
         }
     }
 
     /// `(in, out)` of every fully connected layer including the output layer.
     pub fn fc_dims(&self) -> Vec<(usize, usize)> {
         let mut dims = Vec::new();
-        let mut prev = *self.conv.last().unwrap_or(&self.input);
+        let mut prev = *self.conv.last().unwrap_or(&self.input) * self.window.max(1);
         for &n in self.fc.iter().chain(std::iter::once(&self.output)) {
             dims.push((prev, n));
             prev = n;
@@ -74,8 +101,13 @@ impl Arch {
 
     /// Every tensor this architecture has, in PyTorch `state_dict` order, with its shape and
     /// whether the optimiser trains it (running statistics are buffers).
+    ///
+    /// An architecture without outputs (the model-free `kf`) has no tensors.
     pub fn tensor_specs(&self) -> Vec<TensorSpec> {
         let mut specs = Vec::new();
+        if self.output == 0 {
+            return specs;
+        }
         for (i, (cin, cout)) in self.conv_dims().into_iter().enumerate() {
             let l = i + 1;
             specs.push(TensorSpec::new(

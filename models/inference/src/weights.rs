@@ -41,12 +41,57 @@ mod nan_as_null {
 /// Value of the `format` metadata key this version writes and reads.
 pub const FORMAT: &str = "ghnet/1";
 
+/// How a model runs: which engine answers and whether it keeps a history.
+///
+/// Stored under the metadata key `kind`; files without it (every file written before
+/// temporal models existed) are per-epoch models.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ModelKind {
+    /// One epoch in, one heading out (the paper's network): no history.
+    #[default]
+    Epoch,
+    /// The network over a causal window of the source's recent epochs, run as a
+    /// learned filter step on its own previous output (`crate::stream`).
+    Temporal {
+        /// A time step longer than this (s) clears the history: after a long fix gap
+        /// the vehicle may have turned anywhere.
+        max_gap_s: f32,
+        /// Random-walk heading noise of the Kalman step the network corrects, °/√s.
+        q_deg_per_sqrt_s: f32,
+        /// Velocity noise per axis of that step's measurement σ `σ_v/ŝ`, m/s.
+        sigma_v_mps: f32,
+    },
+    /// The model-free circular Kalman filter on atan2 (`crate::stream::Kf`): the baseline
+    /// a temporal network must beat, shipped so it can be selected like any model.
+    Kf {
+        /// Random-walk heading noise, degrees per √s.
+        q_deg_per_sqrt_s: f32,
+        /// Velocity noise per axis (m/s) behind the measurement σ `σ_v/ŝ`.
+        sigma_v_mps: f32,
+        /// A time step longer than this (s) clears the filter.
+        max_gap_s: f32,
+    },
+}
+
+impl ModelKind {
+    /// The history limit of stateful models; `None` for per-epoch models.
+    pub fn max_gap_s(&self) -> Option<f32> {
+        match *self {
+            ModelKind::Epoch => None,
+            ModelKind::Temporal { max_gap_s, .. } | ModelKind::Kf { max_gap_s, .. } => {
+                Some(max_gap_s)
+            }
+        }
+    }
+}
+
 /// What a model file says about itself.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ModelMeta {
     /// Format tag, [`FORMAT`].
     pub format: String,
-    /// Model name, e.g. `ghnet-full`.
+    /// Model name, e.g. `ghnet-epoch`.
     pub name: String,
     /// Layer sizes.
     pub architecture: Arch,
@@ -72,6 +117,9 @@ pub struct ModelMeta {
     pub training: serde_json::Value,
     /// Headline metrics measured on held-out data when the model was made.
     pub metrics: serde_json::Value,
+    /// Per-epoch, temporal or Kalman filter (key `kind`, optional: per-epoch when absent).
+    #[serde(default)]
+    pub kind: ModelKind,
 }
 
 /// Why a model could not be loaded.
@@ -134,7 +182,8 @@ pub enum WeightsError {
 }
 
 /// Metadata keys whose values are JSON (the others are plain strings or numbers).
-const JSON_KEYS: [&str; 6] = [
+const JSON_KEYS: [&str; 7] = [
+    "kind",
     "architecture",
     "head",
     "heading_range_deg",
@@ -147,7 +196,7 @@ const JSON_KEYS: [&str; 6] = [
 const NUMBER_KEYS: [&str; 3] = ["input_scale_mps", "sigma_scale", "accuracy_sigma_scale"];
 
 /// Metadata keys a file may omit.
-const OPTIONAL_KEYS: [&str; 1] = ["accuracy_sigma_scale"];
+const OPTIONAL_KEYS: [&str; 2] = ["accuracy_sigma_scale", "kind"];
 
 /// Serialise weights and metadata to safetensors bytes.
 pub fn to_bytes(params: &ParamSet, meta: &ModelMeta) -> Vec<u8> {
@@ -201,7 +250,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<(ParamSet, ModelMeta), WeightsError> {
             reason: format!("`{}` is not implemented (only gelu_tanh)", meta.activation),
         });
     }
-    check_arch(&meta.architecture)?;
+    check_arch(&meta.architecture, &meta.kind, &meta.head)?;
     if !(meta.sigma_scale.is_finite() && meta.sigma_scale > 0.0) {
         return Err(WeightsError::BadMetadata {
             key: "sigma_scale".into(),
@@ -215,7 +264,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<(ParamSet, ModelMeta), WeightsError> {
             reason: format!("{k} must be null (unused) or a positive number"),
         });
     }
-    if meta.architecture.output != meta.head.outputs() {
+    let is_kf = matches!(meta.kind, ModelKind::Kf { .. });
+    if !is_kf && meta.architecture.output != meta.head.outputs() {
         return Err(WeightsError::BadMetadata {
             key: "architecture".into(),
             reason: format!(
@@ -278,19 +328,74 @@ pub const MAX_LAYER_WIDTH: usize = 4096;
 /// Most layers (conv + fc) a model file may declare, for the same reason.
 pub const MAX_LAYERS: usize = 64;
 
+/// Longest window a temporal model file may declare (each source's history holds this
+/// many feature vectors).
+pub const MAX_WINDOW: usize = 64;
+
 /// Checks what the inference code assumes of an architecture from a file: two inputs
 /// (v_N, v_E), at least one convolution, sizes in `1..=MAX_LAYER_WIDTH`, at most
 /// [`MAX_LAYERS`] layers. Without this a bad file would panic or abort at load or at
 /// the first prediction instead of being an error.
-fn check_arch(a: &Arch) -> Result<(), WeightsError> {
+fn check_arch(a: &Arch, kind: &ModelKind, head: &Head) -> Result<(), WeightsError> {
     let bad = |reason: String| {
         Err(WeightsError::BadMetadata {
             key: "architecture".into(),
             reason,
         })
     };
-    if a.input != 2 {
-        return bad(format!("input {} is not 2 (v_north, v_east)", a.input));
+    match *kind {
+        ModelKind::Kf {
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+            max_gap_s,
+        } => {
+            let ok = |v: f32| v.is_finite() && v > 0.0;
+            if !(ok(q_deg_per_sqrt_s) && ok(sigma_v_mps) && ok(max_gap_s)) {
+                return Err(WeightsError::BadMetadata {
+                    key: "kind".into(),
+                    reason: "kf parameters must be positive numbers".into(),
+                });
+            }
+            if !(a.conv.is_empty() && a.fc.is_empty() && a.output == 0) {
+                return bad("a kf model has no network (no conv, fc or output)".into());
+            }
+            return Ok(());
+        }
+        ModelKind::Temporal {
+            max_gap_s,
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+        } => {
+            let ok = |v: f32| v.is_finite() && v > 0.0;
+            if !(ok(max_gap_s) && ok(q_deg_per_sqrt_s) && ok(sigma_v_mps)) {
+                return Err(WeightsError::BadMetadata {
+                    key: "kind".into(),
+                    reason: "temporal parameters must be positive numbers".into(),
+                });
+            }
+            if a.input != crate::stream::INPUTS || !(2..=MAX_WINDOW).contains(&a.window) {
+                return bad(format!(
+                    "a temporal model needs input {} and window 2..={MAX_WINDOW} (got {}, {})",
+                    crate::stream::INPUTS,
+                    a.input,
+                    a.window
+                ));
+            }
+            if *head != Head::Filter {
+                return bad("a temporal model needs the filter head".into());
+            }
+        }
+        ModelKind::Epoch => {
+            if a.input != 2 || a.window != 1 {
+                return bad(format!(
+                    "input {} window {}: a per-epoch model has input 2 (v_north, v_east) and window 1",
+                    a.input, a.window
+                ));
+            }
+            if *head == Head::Filter {
+                return bad("the filter head needs a temporal model".into());
+            }
+        }
     }
     if a.conv.is_empty() {
         return bad("no conv layer (the network needs at least one)".into());
@@ -323,6 +428,7 @@ fn parse_meta(md: &HashMap<String, String>) -> Result<ModelMeta, WeightsError> {
         "training_data",
         "training",
         "metrics",
+        "kind",
     ] {
         let Some(raw) = md.get(key) else {
             if OPTIONAL_KEYS.contains(&key) {
@@ -384,6 +490,7 @@ mod tests {
             training_data: serde_json::json!({"sim": "none"}),
             training: serde_json::json!({}),
             metrics: serde_json::json!({"mae": 1.5}),
+            kind: ModelKind::Epoch,
         };
         (params, meta)
     }

@@ -3,13 +3,16 @@
 //! `cargo bench -p ghnet-lab --bench inference`
 //!
 //! Groups:
+//! - `stream`: one epoch through `StreamPredictor::predict` with a source's history, for
+//!   the temporal default model and `kf`: the per-sample streaming cost (the temporal
+//!   model's target is at most 3 µs median here), inputs cycling over a simulated drive.
 //! - `single`: one sample through `Predictor::predict` (validation, network, head, status)
 //!   and through `Network::forward_one` on every kernel this CPU has.
 //! - `batch`: `Predictor::predict_batch` at 16, 256 and 4096, and `Network::forward` at 256
 //!   on every kernel; throughput in samples (elements) per second.
 //! - `gflops`: the same `Network::forward` at 256 with throughput counted in FLOPs, so
 //!   criterion's "elem/s" reads as FLOP/s: 2 per multiply-add of the unpadded folded net
-//!   (33,648 MACs per sample for `ghnet-full`; bias, GELU and padding not counted).
+//!   (33,648 MACs per sample for `ghnet-epoch`; bias, GELU and padding not counted).
 //! - `peak`: a loop of nothing but independent register FMAs on each kernel, counted the
 //!   same way: its `avx512` figure is this core's peak, and `gflops / peak` is the share.
 //! - `gelu`: the vector GELU over one batch-256 pass worth of values (408 per sample).
@@ -23,14 +26,57 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use faer::Mat;
 use ghnet_models::gelu::gelu_inplace_with;
 use ghnet_models::simd::{peak_fma_loop, peak_loop_flops, Kernel};
-use ghnet_models::{Model, Prediction, Predictor};
+use ghnet_models::{Epoch, Model, Prediction, Predictor, StreamPredictor};
+
+fn stream(c: &mut Criterion) {
+    let p = ghnet_lab::drive::DriveParams {
+        tracks: 1,
+        ..Default::default()
+    };
+    let drive: Vec<Epoch> = ghnet_lab::drive::simulate(&p, 3)[0]
+        .samples
+        .iter()
+        .map(|s| Epoch {
+            t_s: s.t_s,
+            v_north: s.v_north,
+            v_east: s.v_east,
+            speed_acc: s.speed_acc,
+        })
+        .collect();
+    let span = drive.last().map_or(1.0, |e| e.t_s) + 1.0;
+    let mut g = c.benchmark_group("stream");
+    g.throughput(Throughput::Elements(1));
+    for name in [ghnet_models::DEFAULT_MODEL, "kf"] {
+        let Ok(model) = Model::builtin(name) else {
+            continue;
+        };
+        let mut sp = StreamPredictor::new(Arc::new(model));
+        let mut h = sp.history();
+        let (mut i, mut lap) = (0usize, 0.0f64);
+        g.bench_function(BenchmarkId::new("predict", name), |b| {
+            b.iter(|| {
+                i += 1;
+                if i == drive.len() {
+                    // Time keeps going forward across laps, as a source's would.
+                    (i, lap) = (0, lap + span);
+                }
+                let e = Epoch {
+                    t_s: drive[i].t_s + lap,
+                    ..drive[i]
+                };
+                black_box(sp.predict(&mut h, black_box(&e)))
+            })
+        });
+    }
+    g.finish();
+}
 
 fn bench(c: &mut Criterion) {
-    let model = Arc::new(Model::builtin("ghnet-full").expect("embedded model"));
+    let model = Arc::new(Model::builtin("ghnet-epoch").expect("embedded model"));
     let mut p = Predictor::new(model.clone());
     let (vn, ve) = ghnet_lab::sim::spread_velocities(4096);
     let scale = model.meta().input_scale_mps;
-    let macs = model.network().macs_per_sample() as u64;
+    let macs = model.network().unwrap().macs_per_sample() as u64;
 
     let mut g = c.benchmark_group("single");
     g.throughput(Throughput::Elements(1));
@@ -42,7 +88,7 @@ fn bench(c: &mut Criterion) {
         })
     });
     for k in Kernel::available() {
-        let net = model.network().clone().with_kernel(k);
+        let net = model.network().unwrap().clone().with_kernel(k);
         let mut s = net.scratch(1);
         let mut out = vec![0.0f32; net.outputs()];
         g.bench_function(BenchmarkId::new("forward_one", k), |b| {
@@ -73,7 +119,7 @@ fn bench(c: &mut Criterion) {
         let mut g = c.benchmark_group(group);
         g.throughput(Throughput::Elements(n as u64 * per_sample));
         for k in Kernel::available() {
-            let net = model.network().clone().with_kernel(k);
+            let net = model.network().unwrap().clone().with_kernel(k);
             let mut s = net.scratch(n);
             let mut y = Mat::zeros(net.outputs(), n);
             g.bench_function(BenchmarkId::new("forward_256", k), |b| {
@@ -97,7 +143,7 @@ fn bench(c: &mut Criterion) {
     g.finish();
 
     let mut g = c.benchmark_group("gelu");
-    let len = model.network().gelus_per_sample() * 256;
+    let len = model.network().unwrap().gelus_per_sample() * 256;
     let src: Vec<f32> = (0..len).map(|i| (i % 1000) as f32 * 0.01 - 5.0).collect();
     let mut buf = src.clone();
     g.throughput(Throughput::Elements(len as u64));
@@ -112,5 +158,5 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+criterion_group!(benches, stream, bench);
 criterion_main!(benches);

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """ONNX Runtime reference for GHNet inference speed (not part of `cargo test`).
 
-Exports the shipped model (models/inference/weights/ghnet-full.safetensors, PyTorch names) to ONNX, built
+Exports the shipped model (models/inference/weights/ghnet-epoch.safetensors, PyTorch names) to ONNX, built
 with the `onnx` helper API from the weights: the same folded network ghnet runs (batch
 norm folded into each kernel-1 conv in f64, the four fc layers collapsed into one affine
 map in f64, tanh-form GELU), on inputs scaled by the model's `input_scale_mps`. Then:
@@ -15,7 +15,7 @@ map in f64, tanh-form GELU), on inputs scaled by the model's `input_scale_mps`. 
 Usage (from the repository root; needs `python3 -m pip install onnx onnxruntime numpy
 safetensors`):
 
-    python3 models/lab/benches/ort_reference.py [--seconds 2] [--onnx /tmp/ghnet-full.onnx]
+    python3 models/lab/benches/ort_reference.py [--seconds 2] [--onnx /tmp/ghnet-epoch.onnx]
 
 The Rust side is built with `cargo build --release -p ghnet-lab --bin ghnet` unless
 `--ghnet PATH` names a binary.
@@ -213,7 +213,7 @@ def ghnet(args, cmd, stdin=None):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--weights", default=os.path.join(ROOT, "models", "inference", "weights", "ghnet-full.safetensors"))
+    ap.add_argument("--weights", default=os.path.join(ROOT, "models", "inference", "weights", "ghnet-epoch.safetensors"))
     ap.add_argument("--seconds", type=float, default=2.0, help="per measurement")
     ap.add_argument("--onnx", help="also write the ONNX model here")
     ap.add_argument("--opset", type=int, default=20, help="20 uses the Gelu op; 17 spells it out")

@@ -2,7 +2,7 @@
 //! one run, next to this core's peak FMA rate measured in the same run.
 //!
 //! Counting: a sample costs [`Network::macs_per_sample`] multiply-adds of the unpadded
-//! folded network (33,648 for `ghnet-full`: 2·24 + 24·48 + 48·96 + 96·192 + 192·48 + 48·4),
+//! folded network (33,648 for `ghnet-epoch`: 2·24 + 24·48 + 48·96 + 96·192 + 192·48 + 48·4),
 //! 2 FLOPs each. Bias, GELU (408 per sample) and the zero padding the kernels compute
 //! are not counted, so the share of peak understates the work the core does.
 
@@ -122,7 +122,11 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Measure `model` on `kernel`, `seconds` per measurement.
 pub fn run(model: &Arc<Model>, kernel: Kernel, seconds: f64) -> Report {
-    let net: Network = model.network().clone().with_kernel(kernel);
+    let net: Network = model
+        .network()
+        .expect("ghnet bench times a network; kf has none")
+        .clone()
+        .with_kernel(kernel);
     let macs = net.macs_per_sample();
     let (vn, ve) = ghnet_lab::sim::spread_velocities(4096);
     let scale = model.meta().input_scale_mps;

@@ -4,8 +4,16 @@
 //!
 //! # Layout
 //! - [`sim`]: the paper's S1 grid and a realistic receiver over the full circle.
+//! - [`drive`]: whole simulated tracks of cars (stops, parking, reversing) and
+//!   turn-in-place platforms, seen by 1–10 Hz receivers with lag, gaps and three styles.
+//! - [`logs`]: tracks of epochs with truth, from the simulator or from users' CSV logs.
 //! - [`loss`]: the losses that train the output heads, with their gradients.
 //! - [`train`]: forward/backward of every layer, AdamW, early stopping, σ calibration.
+//! - [`temporal`]: training the temporal model as a learned filter step on its own
+//!   recorded outputs.
+//! - [`streval`]: streamed evaluation on tracks: tables per speed band with stops as
+//!   their own band, baselines (atan2, the tuned Kalman filter, the receiver's course),
+//!   σ calibration, and the Kalman filter's tuning.
 //! - [`bayes`]: the Bayes-optimal estimate for the S1 prior (the physical limit).
 //! - [`eval`]: per-speed-bin tables, baselines and σ calibration; [`plot`]: the MAE plot.
 //! - [`recipes`]: how the shipped models are trained and judged.
@@ -15,10 +23,15 @@
 #![warn(missing_docs)]
 
 pub mod bayes;
+pub mod drive;
 pub mod eval;
+pub mod logs;
 pub mod loss;
 pub mod plot;
 pub mod recipes;
 pub mod replay;
 pub mod sim;
+pub mod streval;
+pub mod temporal;
+pub mod timeline;
 pub mod train;

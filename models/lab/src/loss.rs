@@ -4,7 +4,7 @@
 //! `log σ`, is trained with a Gaussian negative log-likelihood on the *detached* wrapped
 //! error, so σ learns the error scale without pulling on the heading.
 
-use ghnet_models::head::{sigmoid, wrap_rad, Head, LOG_SIGMA_MAX, LOG_SIGMA_MIN};
+use ghnet_models::head::{sigmoid, wrap_rad, Head, KalmanBase, LOG_SIGMA_MAX, LOG_SIGMA_MIN};
 
 /// Weight of the penalty that keeps the residual head's `(c, s)` near the unit circle,
 /// where `atan2(s, c)` is well conditioned.
@@ -68,8 +68,88 @@ pub fn head_loss(
             dy[2] = sign * sn.atan2(c) * w * (1.0 - w);
             dy[3] = ds;
         }
+        Head::Filter => {
+            // Without a prior (`Head::raw`): the filter step from ψₚ = A.
+            let a = v_east.atan2(v_north);
+            let r = reverse_label(v_north, v_east, truth_deg);
+            let cap = ghnet_models::head::MAX_STD_DEG.to_radians();
+            let base = KalmanBase {
+                p: cap * cap,
+                r2: cap * cap,
+            };
+            return filter_loss(y, a, a, &base, truth_deg, r, sigma_weight, dy);
+        }
     }
     (loss, e, s.exp())
+}
+
+/// Slope of the gain's surrogate gradient outside its clamp, relative to inside.
+pub const GAIN_LEAK: f32 = 0.05;
+
+/// Weight of the reverse switch's classification loss against the heading MAE
+/// (radians): a misread direction costs 180°, so the switch earns a strong signal.
+pub const REVERSE_WEIGHT: f32 = 0.2;
+
+/// Loss of the filter head ([`ghnet_models::head::Head::Filter`]) for one epoch whose
+/// course is `course` and whose previous heading is `prior` (radians), with its gradient
+/// with respect to the three outputs in `dy`. Returns `(loss, wrapped error, raw σ)`.
+///
+/// `ψ = ψₚ + g·d`, `g = clamp(K + y₀/4, 0, 1)` around the Kalman gain `K` of `base`,
+/// `d = wrap(A + r·π − ψₚ)`: the MAE's
+/// gradient is `sign(e)·d/4` on `y₀` inside the clamp, and a surrogate with
+/// [`GAIN_LEAK`] of that slope outside it, so an epoch held (or followed) wrongly still
+/// pulls its gain back instead of sitting in a flat zone. The switch `y₁` gets a logistic loss towards `reverse`
+/// (the course is opposite to the true heading) when that label is known (`Some`);
+/// `y₂` (the correction of the step's `log σ`) the Gaussian likelihood of the detached
+/// error; `log σ`'s dependence on the gain is left out of the gradient (detached too).
+#[allow(clippy::too_many_arguments)] // one epoch's numbers
+pub fn filter_loss(
+    y: &[f32],
+    course: f32,
+    prior: f32,
+    base: &KalmanBase,
+    truth_deg: f32,
+    reverse: Option<bool>,
+    sigma_weight: f32,
+    dy: &mut [f32],
+) -> (f32, f32, f32) {
+    let (psi, step_log_sigma, _, d) = ghnet_models::head::filter_step(y, course, prior, base);
+    let log_sigma = step_log_sigma + y[2];
+    let e = wrap_rad(psi - truth_deg.to_radians());
+    let sign = e.signum() * (e != 0.0) as i32 as f32;
+    let s = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
+    let inv_var = (-2.0 * s).exp();
+    let mut loss = e.abs() + sigma_weight * (0.5 * e * e * inv_var + s);
+    let raw_gain = base.gain() + 0.25 * y[0];
+    let slope = if (0.0..=1.0).contains(&raw_gain) {
+        0.25
+    } else {
+        0.25 * GAIN_LEAK
+    };
+    dy[0] = sign * slope * d;
+    dy[1] = 0.0;
+    if let Some(r) = reverse {
+        let p = sigmoid(y[1]);
+        let t = r as i32 as f32;
+        // Logistic loss, written stably: log(1 + e^{−z}) for z = ±y₁.
+        let z = if r { y[1] } else { -y[1] };
+        loss += REVERSE_WEIGHT * (-z.min(0.0) + (-z.abs()).exp().ln_1p());
+        dy[1] = REVERSE_WEIGHT * (p - t);
+    }
+    dy[2] = if log_sigma == s {
+        sigma_weight * (1.0 - e * e * inv_var)
+    } else {
+        0.0
+    };
+    (loss, e, s.exp())
+}
+
+/// The reverse label of an epoch: `Some(course opposite to the true heading)` when the
+/// velocity clearly shows a direction (over 0.3 m/s and within 60° of either the heading
+/// or its opposite), `None` otherwise.
+pub fn reverse_label(v_north: f32, v_east: f32, truth_deg: f32) -> Option<bool> {
+    let c = (v_east.atan2(v_north) - truth_deg.to_radians()).cos();
+    (v_north.hypot(v_east) > 0.3 && c.abs() > 0.5).then_some(c < 0.0)
 }
 
 /// Initial bias of the output layer: the residual head starts at `Δ = 0`
@@ -79,6 +159,8 @@ pub fn initial_bias(head: &Head) -> Vec<f32> {
         Head::Angle { .. } => vec![0.0, 0.0],
         Head::Residual { .. } => vec![1.0, 0.0, 0.0, 0.0],
         Head::Blend { .. } => vec![0.0, 0.0, 0.0],
+        // The Kalman step unchanged, forwards: the filter starts as the baseline.
+        Head::Filter => vec![0.0, -3.0, 0.0],
     }
 }
 
@@ -130,5 +212,42 @@ mod tests {
         };
         check_loss_grad(b, &[0.2, 0.3, -0.5], 1.0, 0.5, 60.0);
         check_loss_grad(b, &[-0.6, -1.1, 0.4], -0.1, 0.05, 10.0);
+    }
+
+    /// The filter head (the temporal models' new layer) against finite differences,
+    /// with a prior and without one, holding, following and reversing, with and without
+    /// a reverse label. The switch is a step in `y₁`, so `y₁` is kept away from 0.
+    #[test]
+    fn filter_loss_gradient_matches_finite_differences() {
+        check_loss_grad(Head::Filter, &[0.3, 1.2, -0.5], 1.0, 0.5, 40.0);
+        type Case = ([f32; 3], f32, f32, f32, Option<bool>);
+        let cases: [Case; 5] = [
+            ([0.1, 0.8, -1.0], 0.5, 0.2, 30.0, Some(true)),
+            ([0.5, -0.7, 0.3], 2.0, -1.0, 100.0, Some(false)),
+            ([-0.4, 1.1, -2.0], -2.5, 0.9, 45.0, None),
+            ([0.0, -0.5, 0.5], 3.0, -3.0, 200.0, Some(true)),
+            ([-0.5, 2.5, 0.1], 1.0, 1.2, 250.0, Some(false)),
+        ];
+        let base = KalmanBase { p: 0.04, r2: 0.05 };
+        for (y, course, prior, truth, rev) in cases {
+            for k in 0..3 {
+                let w = if k == 2 { 0.3 } else { 0.0 };
+                let mut dy = [0.0; 3];
+                filter_loss(&y, course, prior, &base, truth, rev, w, &mut dy);
+                let h = 1e-3;
+                let (mut yp, mut ym) = (y, y);
+                yp[k] += h;
+                ym[k] -= h;
+                let mut t = [0.0; 3];
+                let lp = filter_loss(&yp, course, prior, &base, truth, rev, w, &mut t).0 as f64;
+                let lm = filter_loss(&ym, course, prior, &base, truth, rev, w, &mut t).0 as f64;
+                let fd = (lp - lm) / (2.0 * h as f64);
+                assert!(
+                    (fd - dy[k] as f64).abs() < 2e-3 * (1.0 + fd.abs()),
+                    "{y:?} output {k}: analytic {} fd {fd}",
+                    dy[k]
+                );
+            }
+        }
     }
 }

@@ -37,13 +37,25 @@ enum Cmd {
         #[command(subcommand)]
         which: SimCmd,
     },
-    /// Train a model from a shipped recipe (`paper-s1`, `ghnet-full`) and write it.
+    /// Train a model from a shipped recipe (`paper-s1`, `ghnet-epoch`, `ghnet-temporal`,
+    /// which also tunes and writes `kf`), or on your own logs with `--data`.
     Train {
         /// Recipe name.
+        #[arg(long, required_unless_present = "data", conflicts_with = "data")]
+        recipe: Option<String>,
+        /// CSV log(s) with `truth_heading_deg` (see `ghnet_lab::logs` for the columns):
+        /// trains a temporal model, the last 20% of each track (by time) for validation.
         #[arg(long)]
-        recipe: String,
+        data: Vec<PathBuf>,
+        /// With `--data`: start from this model (fine-tune) instead of random weights.
+        #[arg(long, requires = "data")]
+        init: Option<String>,
+        /// With `--data`: train a per-epoch model restricted to headings in `LO,HI`
+        /// degrees, the paper's own protocol (its best result came from 0–90°).
+        #[arg(long, requires = "data", value_parser = parse_range)]
+        heading_range: Option<(f32, f32)>,
         /// Output safetensors file (default: models/inference/weights/<recipe>.safetensors).
-        #[arg(long)]
+        #[arg(long, required_unless_present = "recipe")]
         output: Option<PathBuf>,
         /// Override the recipe's seed for initialisation, shuffling and dropout.
         #[arg(long)]
@@ -55,11 +67,22 @@ enum Cmd {
         #[arg(long)]
         quiet: bool,
     },
-    /// Evaluate a model on its held-out data: per-speed-bin tables, σ calibration, plot.
+    /// Evaluate a model on its held-out data (per-speed-bin tables, σ calibration, plot),
+    /// or on your own log with `--data` (tables per speed band against atan2 and `kf`).
     Eval {
         /// Built-in model name or safetensors path.
         #[arg(long, default_value = DEFAULT_MODEL)]
         model: String,
+        /// CSV log with `truth_heading_deg`: tables on it instead of the held-out data.
+        #[arg(long)]
+        data: Option<PathBuf>,
+        /// The Kalman filter of the tables (default: the built-in `kf`).
+        #[arg(long)]
+        kf: Option<String>,
+        /// With a stateful model: also plot heading against time (truth, atan2, kf, the
+        /// model ±σ) of the first track to this SVG file.
+        #[arg(long)]
+        plot: Option<PathBuf>,
         /// Directory for `<name>.md`, `<name>.csv`, `<name>.json` and `<name>.svg`;
         /// without it the Markdown table goes to stdout.
         #[arg(long)]
@@ -162,6 +185,18 @@ enum SimCmd {
         #[arg(long)]
         output: PathBuf,
     },
+    /// Whole drives: cars that park, reverse and stop at junctions, and platforms that
+    /// turn in place, seen by 1–10 Hz receivers (see `ghnet_lab::drive`).
+    Drive {
+        #[command(flatten)]
+        params: ghnet_lab::drive::DriveParams,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output CSV (the log format `ghnet train --data` and `ghnet eval --data` read).
+        #[arg(long)]
+        output: PathBuf,
+    },
     /// A realistic consumer receiver over the full circle.
     Realistic {
         #[command(flatten)]
@@ -176,6 +211,14 @@ enum SimCmd {
 }
 
 mod bench;
+mod commands;
+
+/// `LO,HI` in degrees.
+fn parse_range(s: &str) -> std::result::Result<(f32, f32), String> {
+    let (a, b) = s.split_once(',').ok_or("expected LO,HI")?;
+    let p = |x: &str| x.trim().parse::<f32>().map_err(|e| e.to_string());
+    Ok((p(a)?, p(b)?))
+}
 
 fn main() -> ExitCode {
     match run(Cli::parse()) {
@@ -193,6 +236,23 @@ fn load(model: &str) -> Result<Arc<Model>> {
 
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
+        Cmd::Simulate {
+            which:
+                SimCmd::Drive {
+                    params,
+                    seed,
+                    output,
+                },
+        } => {
+            let tracks = ghnet_lab::drive::simulate(&params, seed);
+            ghnet_lab::logs::write_tracks_csv(&output, &tracks)?;
+            let n: usize = tracks.iter().map(|t| t.samples.len()).sum();
+            eprintln!(
+                "wrote {} tracks, {n} epochs to {}",
+                tracks.len(),
+                output.display()
+            );
+        }
         Cmd::Simulate { which } => {
             let (samples, output) = match which {
                 SimCmd::S1 {
@@ -205,10 +265,34 @@ fn run(cli: Cli) -> Result<()> {
                     seed,
                     output,
                 } => (sim::simulate_realistic(&params, seed), output),
+                SimCmd::Drive { .. } => unreachable!("matched above"),
             };
             sim::write_csv(&output, &samples)
                 .with_context(|| format!("writing {}", output.display()))?;
             eprintln!("wrote {} samples to {}", samples.len(), output.display());
+        }
+        Cmd::Train {
+            data,
+            init,
+            heading_range,
+            output,
+            seed,
+            epochs,
+            ..
+        } if !data.is_empty() => {
+            let output = output.context("--output is required with --data")?;
+            commands::train_data(&data, &output, init.as_deref(), heading_range, seed, epochs)?;
+        }
+        Cmd::Train {
+            recipe: Some(recipe),
+            output,
+            seed,
+            epochs,
+            ..
+        } if recipe.starts_with("ghnet-temporal") => {
+            let output = output
+                .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
+            commands::train_temporal_recipe(&recipe, &output, seed, epochs)?;
         }
         Cmd::Train {
             recipe,
@@ -216,9 +300,11 @@ fn run(cli: Cli) -> Result<()> {
             seed,
             epochs,
             quiet,
+            ..
         } => {
+            let recipe = recipe.context("--recipe or --data")?;
             let mut r = Recipe::named(&recipe).with_context(|| {
-                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-full)")
+                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch, ghnet-temporal, ghnet-temporal-mixed, ghnet-temporal-tip)")
             })?;
             if let Some(s) = seed {
                 r.train.seed = s;
@@ -230,7 +316,17 @@ fn run(cli: Cli) -> Result<()> {
                 .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
             train_recipe(&r, &output, quiet)?;
         }
-        Cmd::Eval { model, out_dir } => {
+        Cmd::Eval {
+            model,
+            data,
+            kf,
+            plot,
+            ..
+        } if data.is_some() || load(&model)?.is_stateful() => {
+            let m = load(&model)?;
+            commands::eval_stream(&m, data.as_deref(), kf.as_deref(), plot.as_deref())?;
+        }
+        Cmd::Eval { model, out_dir, .. } => {
             let model = load(&model)?;
             let data: DataSpec = serde_json::from_value(model.meta().training_data.clone())
                 .context("model metadata `training_data` does not name a simulator to regenerate its held-out data")?;
@@ -277,12 +373,15 @@ fn run(cli: Cli) -> Result<()> {
                 .with_context(|| format!("cannot open input {}", input.display()))?;
             let out = File::create(&output)
                 .with_context(|| format!("cannot create output {}", output.display()))?;
-            let mut p = Predictor::new(model);
-            let s = replay::run(
-                &mut p,
+            let (inp, out) = (
                 BufReader::with_capacity(1 << 16, inp),
                 BufWriter::with_capacity(1 << 16, out),
-            )
+            );
+            let s = if model.is_stateful() {
+                replay::run(&mut replay::Streams::new(model), inp, out)
+            } else {
+                replay::run(&mut Predictor::new(model), inp, out)
+            }
             .with_context(|| format!("{}", input.display()))?;
             let first = s
                 .first_invalid_row
@@ -330,7 +429,12 @@ fn run(cli: Cli) -> Result<()> {
 /// Raw outputs for `v_north v_east` lines on stdin, one output line each.
 fn forward_stdin(m: &Model) -> Result<()> {
     use std::io::{BufRead, Write};
-    let net = m.network();
+    let Some(ghnet_models::model::Engine::Epoch(net)) = Some(m.engine()) else {
+        bail!(
+            "forward prints a per-epoch network's outputs; {} is not one",
+            m.name()
+        );
+    };
     let mut scratch = net.scratch(1);
     let mut y = vec![0.0f32; net.outputs()];
     let stdout = std::io::stdout();
@@ -423,6 +527,7 @@ fn train_recipe(r: &Recipe, output: &std::path::Path, quiet: bool) -> Result<()>
             "eval_max_speed": r.eval_max_speed,
         }),
         metrics: serde_json::Value::Null,
+        kind: ghnet_models::weights::ModelKind::Epoch,
     };
     // Measure on held-out data and store the headline numbers in the file itself.
     let model = Arc::new(Model::new(trained.params.clone(), meta.clone()));

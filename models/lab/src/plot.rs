@@ -177,6 +177,97 @@ where
     Ok(())
 }
 
+/// One series of [`plot_heading_timeline`]: name, heading per epoch (degrees), and an
+/// optional 1σ per epoch drawn as a band.
+pub struct Series<'a> {
+    /// Legend.
+    pub name: &'a str,
+    /// Heading, degrees.
+    pub heading_deg: &'a [f32],
+    /// 1σ, degrees.
+    pub std_deg: Option<&'a [f32]>,
+}
+
+/// Heading against time (truth and estimators) as an SVG: points, not lines, so the
+/// wrap at 0°/360° draws no false strokes; a σ band is a vertical bar per epoch, split
+/// at the wrap.
+pub fn plot_heading_timeline(
+    path: impl AsRef<Path>,
+    title: &str,
+    t_s: &[f64],
+    series: &[Series<'_>],
+) -> Result<(), PlotError> {
+    let path = path.as_ref();
+    let backend_err = |e: &dyn std::fmt::Display| PlotError::Backend {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    };
+    let (Some(&t0), Some(&t1)) = (t_s.first(), t_s.last()) else {
+        return Err(PlotError::Empty);
+    };
+    let root = SVGBackend::new(path, (1400, 560)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| backend_err(&e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0.0..(t1 - t0).max(1.0), 0.0..360.0)
+        .map_err(|e| backend_err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("time [s]")
+        .y_desc("heading [deg, clockwise from north]")
+        .y_labels(9)
+        .draw()
+        .map_err(|e| backend_err(&e))?;
+    for (k, s) in series.iter().enumerate() {
+        let color = if k == 0 {
+            BLACK
+        } else {
+            PALETTE[(k - 1) % PALETTE.len()]
+        };
+        if let Some(sd) = s.std_deg {
+            let band = color.mix(0.12);
+            for (i, (&h, &d)) in s.heading_deg.iter().zip(sd).enumerate() {
+                let x = t_s[i] - t0;
+                let (lo, hi) = ((h - d) as f64, (h + d) as f64);
+                for (a, b) in [(lo, hi), (lo + 360.0, hi + 360.0), (lo - 360.0, hi - 360.0)] {
+                    let (a, b) = (a.max(0.0), b.min(360.0));
+                    if a < b {
+                        chart
+                            .draw_series(std::iter::once(PathElement::new(
+                                vec![(x, a), (x, b)],
+                                band.stroke_width(2),
+                            )))
+                            .map_err(|e| backend_err(&e))?;
+                    }
+                }
+            }
+        }
+        let size = if k == 0 { 3 } else { 2 };
+        chart
+            .draw_series(
+                s.heading_deg
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &h)| Circle::new((t_s[i] - t0, h as f64), size, color.filled())),
+            )
+            .map_err(|e| backend_err(&e))?
+            .label(s.name)
+            .legend(move |(x, y)| Circle::new((x + 8, y), 4, color.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|e| backend_err(&e))?;
+    root.present().map_err(|e| backend_err(&e))?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

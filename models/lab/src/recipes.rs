@@ -1,5 +1,5 @@
 //! How the shipped models are made and judged: data, head, scaling and hyper-parameters
-//! for `paper-s1` and `ghnet-full`, and the held-out evaluation of any model.
+//! for `paper-s1` and `ghnet-epoch`, and the held-out evaluation of any model.
 //!
 //! A model file records in its `training_data` metadata which simulator, parameters and
 //! seed produced it, so `ghnet eval --model X` regenerates exactly its held-out split
@@ -95,7 +95,7 @@ impl Recipe {
                 },
                 eval_max_speed: 3.5,
             }),
-            "ghnet-full" => Some(Recipe {
+            "ghnet-epoch" => Some(Recipe {
                 name: name.into(),
                 data: DataSpec::Realistic {
                     params: RealisticParams::default(),

@@ -7,7 +7,14 @@
 //! north, [0, 360)), `heading_std_deg` and `status` appended. A row whose velocity is
 //! empty, unparsable, NaN, infinite or absurd (over the policy's max speed) gets status
 //! `invalid` and empty heading fields; it never stops the file. Rows are read, answered
-//! through the batch path and written in blocks, so memory does not grow with the file.
+//! and written in blocks, so memory does not grow with the file.
+//!
+//! Stateful models (the temporal default, `kf`; [`Streams`]) follow ghnetd's history
+//! rules: rows in file order, one history per value of a `track` column (all rows share
+//! one without it), time from `t_s` (seconds) or `timestamp_ns`, a history cleared when
+//! time goes backwards or jumps by more than the model's gap limit. Without a time
+//! column rows are taken as one second apart. A row whose time does not parse is
+//! `invalid`. Per-epoch models ignore all of this and run through the batch path.
 //!
 //! # Malformed input
 //!
@@ -30,12 +37,151 @@
 //! | an unterminated quote | the field runs to the end of the file: one more (likely `invalid`) row |
 //! | a read or write failure | error [`InferError::Io`] / [`InferError::Csv`] |
 
+use std::collections::HashMap;
 use std::io::{Read, Write};
+use std::sync::Arc;
 
 use ghnet_models::model::{Prediction, Predictor, Status};
+use ghnet_models::{Epoch, History, Model, StreamPredictor};
 
 /// Rows per block: large enough for the batch path, small enough to stay in cache.
 const BLOCK: usize = 1024;
+
+/// One block of parsed rows: what the model sees, separated from the CSV handling so
+/// other readers (UBX, NMEA) can feed the same answerers.
+#[derive(Debug, Default)]
+pub struct Rows {
+    /// North velocity, m/s (NaN when the field did not parse).
+    pub v_north: Vec<f32>,
+    /// East velocity, m/s.
+    pub v_east: Vec<f32>,
+    /// Speed accuracy, m/s (NaN unknown).
+    pub speed_acc: Vec<f32>,
+    /// Time, s (from `t_s` or `timestamp_ns`; the row number when the file has neither).
+    pub t_s: Vec<f64>,
+    /// Hash of the `track` field (0 without the column): rows of one value share a history.
+    pub track: Vec<u64>,
+}
+
+/// Where the fields the model needs are in a record.
+struct Columns {
+    v_north: usize,
+    v_east: usize,
+    speed_acc: Option<usize>,
+    t_s: Option<usize>,
+    timestamp_ns: Option<usize>,
+    track: Option<usize>,
+}
+
+impl Columns {
+    /// The columns of `header`; an error when a required one is missing or an output
+    /// column already exists.
+    fn find(header: &csv::ByteRecord) -> Result<Self, InferError> {
+        // Spaces around a name (`v_north, v_east`) are a common hand-edit; accept them.
+        let find = |name: &'static str| {
+            header
+                .iter()
+                .position(|h| h.trim_ascii() == name.as_bytes())
+        };
+        if let Some(c) = OUTPUT_COLUMNS.into_iter().find(|c| find(c).is_some()) {
+            return Err(InferError::DuplicateColumn(c));
+        }
+        Ok(Columns {
+            v_north: find("v_north").ok_or(InferError::MissingColumn("v_north"))?,
+            v_east: find("v_east").ok_or(InferError::MissingColumn("v_east"))?,
+            speed_acc: find("speed_acc"),
+            t_s: find("t_s"),
+            timestamp_ns: find("timestamp_ns"),
+            track: find("track"),
+        })
+    }
+}
+
+impl Rows {
+    fn clear(&mut self) {
+        self.v_north.clear();
+        self.v_east.clear();
+        self.speed_acc.clear();
+        self.t_s.clear();
+        self.track.clear();
+    }
+
+    /// Parse one record (the `row`-th of the file, from 0).
+    fn push(&mut self, r: &csv::ByteRecord, c: &Columns, row: u64) {
+        self.v_north.push(parse_field(r.get(c.v_north)));
+        self.v_east.push(parse_field(r.get(c.v_east)));
+        self.speed_acc
+            .push(c.speed_acc.map_or(f32::NAN, |i| parse_field(r.get(i))));
+        self.t_s.push(match (c.t_s, c.timestamp_ns) {
+            (Some(i), _) => parse_time(r.get(i), 1.0),
+            (None, Some(i)) => parse_time(r.get(i), 1e-9),
+            (None, None) => row as f64,
+        });
+        self.track.push(key(c.track.and_then(|i| r.get(i))));
+    }
+}
+
+/// What answers a block of rows.
+pub trait Answer {
+    /// Answer `rows` into `out` (same length), in order.
+    fn answer(&mut self, rows: &Rows, out: &mut [Prediction]);
+}
+
+/// Per-epoch models: the batch path, no history.
+impl Answer for Predictor {
+    fn answer(&mut self, rows: &Rows, out: &mut [Prediction]) {
+        self.predict_batch_with_accuracy(&rows.v_north, &rows.v_east, &rows.speed_acc, out);
+    }
+}
+
+/// Stateful models (temporal, `kf`): one history per `track` value, with the same rules
+/// as ghnetd (gap over the model's limit, time backwards).
+#[derive(Debug)]
+pub struct Streams {
+    sp: StreamPredictor,
+    histories: HashMap<u64, History>,
+}
+
+impl Streams {
+    /// Answer with `model`.
+    pub fn new(model: Arc<Model>) -> Self {
+        Self {
+            sp: StreamPredictor::new(model),
+            histories: HashMap::new(),
+        }
+    }
+}
+
+impl Answer for Streams {
+    fn answer(&mut self, rows: &Rows, out: &mut [Prediction]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            let sp = &self.sp;
+            let h = self
+                .histories
+                .entry(rows.track[i])
+                .or_insert_with(|| sp.history());
+            *o = self.sp.predict(
+                h,
+                &Epoch {
+                    t_s: rows.t_s[i],
+                    v_north: rows.v_north[i],
+                    v_east: rows.v_east[i],
+                    speed_acc: rows.speed_acc[i],
+                },
+            );
+        }
+    }
+}
+
+/// FNV-1a of a field, the history key of a `track` value.
+fn key(b: Option<&[u8]>) -> u64 {
+    b.unwrap_or_default()
+        .trim_ascii()
+        .iter()
+        .fold(0xcbf2_9ce4_8422_2325, |h, &c| {
+            (h ^ c as u64).wrapping_mul(0x0100_0000_01b3)
+        })
+}
 
 /// Columns appended to every row.
 pub const OUTPUT_COLUMNS: [&str; 3] = ["heading_deg", "heading_std_deg", "status"];
@@ -79,6 +225,14 @@ fn parse_field(field: Option<&[u8]>) -> f32 {
         .unwrap_or(f32::NAN)
 }
 
+/// Parse a time field in units of `scale` seconds; NaN (answered `invalid`) when absent.
+fn parse_time(field: Option<&[u8]>, scale: f64) -> f64 {
+    field
+        .and_then(|b| std::str::from_utf8(b).ok())
+        .and_then(|s| s.trim().parse::<f64>().ok())
+        .map_or(f64::NAN, |v| v * scale)
+}
+
 /// Format a finite value with four decimals into `buf` (`{:.4}` through `fmt` costs a
 /// tenth of a day-long replay; this is integer formatting with itoa).
 fn fixed4(x: f32, buf: &mut Vec<u8>) -> &[u8] {
@@ -98,7 +252,7 @@ fn fixed4(x: f32, buf: &mut Vec<u8>) -> &[u8] {
 
 /// Stream `input` to `output`, answering every row.
 pub fn run(
-    predictor: &mut Predictor,
+    predictor: &mut impl Answer,
     input: impl Read,
     output: impl Write,
 ) -> Result<InferSummary, InferError> {
@@ -108,45 +262,29 @@ pub fn run(
         .from_reader(input);
     let mut wtr = csv::WriterBuilder::new().flexible(true).from_writer(output);
     let header = rdr.byte_headers()?.clone();
-    // Spaces around a name (`v_north, v_east`) are a common hand-edit; accept them.
-    let find = |name: &'static str| {
-        header
-            .iter()
-            .position(|h| h.trim_ascii() == name.as_bytes())
-    };
-    let i_n = find("v_north").ok_or(InferError::MissingColumn("v_north"))?;
-    let i_e = find("v_east").ok_or(InferError::MissingColumn("v_east"))?;
-    let i_acc = find("speed_acc");
-    for c in OUTPUT_COLUMNS {
-        if find(c).is_some() {
-            return Err(InferError::DuplicateColumn(c));
-        }
-    }
+    let cols = Columns::find(&header)?;
     let mut out_header = header.clone();
-    for c in OUTPUT_COLUMNS {
-        out_header.push_field(c.as_bytes());
-    }
+    OUTPUT_COLUMNS
+        .iter()
+        .for_each(|c| out_header.push_field(c.as_bytes()));
     wtr.write_byte_record(&out_header)?;
 
     let mut records: Vec<csv::ByteRecord> = (0..BLOCK).map(|_| csv::ByteRecord::new()).collect();
-    let mut vn = vec![0.0f32; BLOCK];
-    let mut ve = vec![0.0f32; BLOCK];
-    let mut acc = vec![f32::NAN; BLOCK];
+    let mut rows = Rows::default();
     let mut preds = vec![Prediction::INVALID; BLOCK];
     let mut summary = InferSummary::default();
     let mut num = Vec::with_capacity(32);
     loop {
+        rows.clear();
         let mut n = 0;
         while n < BLOCK && rdr.read_byte_record(&mut records[n])? {
-            vn[n] = parse_field(records[n].get(i_n));
-            ve[n] = parse_field(records[n].get(i_e));
-            acc[n] = i_acc.map_or(f32::NAN, |i| parse_field(records[n].get(i)));
+            rows.push(&records[n], &cols, summary.rows + n as u64);
             n += 1;
         }
         if n == 0 {
             break;
         }
-        predictor.predict_batch_with_accuracy(&vn[..n], &ve[..n], &acc[..n], &mut preds[..n]);
+        predictor.answer(&rows, &mut preds[..n]);
         for (rec, p) in records[..n].iter_mut().zip(&preds[..n]) {
             summary.rows += 1;
             if p.status == Status::Invalid {
@@ -185,7 +323,7 @@ mod tests {
 
     fn predictor() -> Predictor {
         Predictor::new(Arc::new(
-            Model::builtin("ghnet-full").expect("embedded model"),
+            Model::builtin("ghnet-epoch").expect("embedded model"),
         ))
     }
 

@@ -267,20 +267,6 @@ struct ConvCache {
     inv_std: Vec<f32>,
 }
 
-/// Forward/backward workspace for the unfolded network (training graph).
-pub struct Graph {
-    arch: Arch,
-    batch: usize,
-    x: Mat<f32>,
-    conv: Vec<ConvCache>,
-    mask: Mat<f32>,
-    fc: Vec<Mat<f32>>,
-    // backward scratch
-    da: Vec<Mat<f32>>,
-    dfc: Vec<Mat<f32>>,
-    dz: Mat<f32>,
-}
-
 /// How [`Graph::forward`] treats batch norm and dropout.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mode {
@@ -290,8 +276,21 @@ pub enum Mode {
     Eval,
 }
 
-impl Graph {
-    /// Buffers for mini-batches of exactly `batch` samples.
+/// Forward/backward workspace of the kernel-1 convolution stack (each followed by batch
+/// norm and GELU, dropout after the last): the per-epoch part of every GHNet network,
+/// shared by the per-epoch [`Graph`] and the temporal trainer.
+pub struct ConvStack {
+    arch: Arch,
+    batch: usize,
+    x: Mat<f32>,
+    conv: Vec<ConvCache>,
+    mask: Mat<f32>,
+    da: Vec<Mat<f32>>,
+    dz: Mat<f32>,
+}
+
+impl ConvStack {
+    /// Buffers for mini-batches of exactly `batch` columns.
     pub fn new(arch: &Arch, batch: usize) -> Self {
         let conv = arch
             .conv
@@ -307,11 +306,6 @@ impl Graph {
             })
             .collect();
         let last = *arch.conv.last().expect("conv layers");
-        let fc: Vec<Mat<f32>> = arch
-            .fc_dims()
-            .iter()
-            .map(|&(_, o)| Mat::zeros(o, batch))
-            .collect();
         Self {
             arch: arch.clone(),
             batch,
@@ -319,20 +313,23 @@ impl Graph {
             conv,
             mask: Mat::from_fn(last, batch, |_, _| 1.0),
             da: arch.conv.iter().map(|&c| Mat::zeros(c, batch)).collect(),
-            dfc: fc.iter().map(|m| Mat::zeros(m.nrows(), batch)).collect(),
-            fc,
             dz: Mat::zeros(arch.conv.iter().copied().max().unwrap_or(1), batch),
         }
     }
 
-    /// The input buffer (`input × batch`), to be filled with scaled velocities.
+    /// The input buffer (`input × batch`).
     pub fn input_mut(&mut self) -> MatMut<'_, f32> {
         self.x.as_mut()
     }
 
-    /// The network outputs of the last forward pass (`outputs × batch`).
-    pub fn output(&self) -> MatRef<'_, f32> {
-        self.fc.last().expect("fc layers").as_ref()
+    /// The last layer's output after dropout (`channels × batch`).
+    pub fn features(&self) -> MatRef<'_, f32> {
+        self.conv.last().expect("conv layers").a.as_ref()
+    }
+
+    /// Where the caller puts `∂L/∂features` before [`ConvStack::backward`].
+    pub fn d_features_mut(&mut self) -> MatMut<'_, f32> {
+        self.da.last_mut().expect("conv layers").as_mut()
     }
 
     /// Set the dropout mask for the next forward pass (`p = 0` disables it).
@@ -369,114 +366,26 @@ impl Graph {
                 input,
                 cache.z.as_mut(),
             );
-            let gamma = params.get(&format!("bn{name}.weight")).to_vec();
-            let beta = params.get(&format!("bn{name}.bias")).to_vec();
             match mode {
-                Mode::Train => {
-                    bn_forward_train(
-                        cache.z.as_ref(),
-                        &gamma,
-                        &beta,
-                        cache.xhat.as_mut(),
-                        cache.a.as_mut(),
-                        &mut cache.mean,
-                        &mut cache.var,
-                        &mut cache.inv_std,
-                    );
-                    let n = self.batch as f32;
-                    let unbias = if n > 1.0 { n / (n - 1.0) } else { 1.0 };
-                    let rm = params.get_mut(&format!("bn{name}.running_mean"));
-                    for (r, m) in rm.iter_mut().zip(&cache.mean) {
-                        *r = (1.0 - BN_MOMENTUM) * *r + BN_MOMENTUM * m;
-                    }
-                    let rv = params.get_mut(&format!("bn{name}.running_var"));
-                    for (r, v) in rv.iter_mut().zip(&cache.var) {
-                        *r = (1.0 - BN_MOMENTUM) * *r + BN_MOMENTUM * v * unbias;
-                    }
-                }
-                Mode::Eval => {
-                    let rm = params.get(&format!("bn{name}.running_mean"));
-                    let rv = params.get(&format!("bn{name}.running_var"));
-                    for c in 0..rm.len() {
-                        cache.mean[c] = rm[c];
-                        cache.var[c] = rv[c];
-                        cache.inv_std[c] = 1.0 / (rv[c] + BN_EPS).sqrt();
-                    }
-                    for j in 0..self.batch {
-                        for c in 0..rm.len() {
-                            let xh = (cache.z[(c, j)] - cache.mean[c]) * cache.inv_std[c];
-                            cache.xhat[(c, j)] = xh;
-                            cache.a[(c, j)] = gamma[c] * xh + beta[c];
-                        }
-                    }
-                }
+                Mode::Train => bn_train_step(params, name, cache, self.batch),
+                Mode::Eval => bn_eval_step(params, name, cache, self.batch),
             }
             gelu_forward(cache.a.as_mut(), cache.dgelu.as_mut());
         }
         if mode == Mode::Train {
             apply_mask(self.conv[n_conv - 1].a.as_mut(), self.mask.as_ref());
         }
-        for l in 0..self.fc.len() {
-            let name = l + 1;
-            let (done, todo) = self.fc.split_at_mut(l);
-            let input = if l == 0 {
-                self.conv[n_conv - 1].a.as_ref()
-            } else {
-                done[l - 1].as_ref()
-            };
-            dense_forward(
-                params.matrix_t(&format!("fc{name}.weight")),
-                params.get(&format!("fc{name}.bias")),
-                input,
-                todo[0].as_mut(),
-            );
-        }
     }
 
-    /// Backward pass of a [`Mode::Train`] forward: `dout` is `∂L/∂outputs`; gradients for
-    /// every tensor go into `grads` (same layout as `params.data()`, buffers left at zero).
-    pub fn backward(&mut self, params: &ParamSet, dout: MatRef<'_, f32>, grads: &mut [f32]) {
+    /// Backward pass of a [`Mode::Train`] forward from `∂L/∂features` (set through
+    /// [`ConvStack::d_features_mut`]); gradients accumulate into `grads`.
+    pub fn backward(&mut self, params: &ParamSet, grads: &mut [f32]) {
         let n_conv = self.arch.conv.len();
-        let n_fc = self.fc.len();
-        self.dfc[n_fc - 1].as_mut().copy_from(dout);
-        for l in (0..n_fc).rev() {
-            let name = l + 1;
-            let wname = format!("fc{name}.weight");
-            let bname = format!("fc{name}.bias");
-            let wi = params.index_of(&wname).expect("weight");
-            let bi = params.index_of(&bname).expect("bias");
-            let (wr, br) = (params.range(wi), params.range(bi));
-            let shape = &params.specs()[wi].shape;
-            let (fout, fin) = (shape[0], shape[1]);
-            let input = if l == 0 {
-                self.conv[n_conv - 1].a.as_ref()
-            } else {
-                self.fc[l - 1].as_ref()
-            };
-            let (gw, gb) = split_two(grads, wr, br);
-            let (dprev, dcur) = self.dfc.split_at_mut(l);
-            let dx = if l == 0 {
-                self.da[n_conv - 1].as_mut()
-            } else {
-                dprev[l - 1].as_mut()
-            };
-            debug_assert_eq!(dcur[0].nrows(), fout);
-            dense_backward(
-                params.matrix_t(&wname),
-                input,
-                dcur[0].as_ref(),
-                MatMut::from_column_major_slice_mut(gw, fin, fout),
-                gb,
-                Some(dx),
-            );
-        }
-        // dropout
         apply_mask(self.da[n_conv - 1].as_mut(), self.mask.as_ref());
         for l in (0..n_conv).rev() {
             let name = l + 1;
             let c = self.arch.conv[l];
             let cache = &self.conv[l];
-            // through GELU
             let mut dy = self.da[l].as_mut();
             for j in 0..self.batch {
                 for ch in 0..c {
@@ -512,11 +421,7 @@ impl Graph {
             } else {
                 self.conv[l - 1].a.as_ref()
             };
-            let dx = if l == 0 {
-                None
-            } else {
-                Some(da_prev[l - 1].as_mut())
-            };
+            let dx = (l > 0).then(|| da_prev[l - 1].as_mut());
             dense_backward(
                 params.matrix_t(&wname),
                 input,
@@ -526,6 +431,159 @@ impl Graph {
                 dx,
             );
         }
+    }
+}
+
+/// Batch norm of layer `name` in training mode, with the running-statistics update.
+fn bn_train_step(params: &mut ParamSet, name: usize, cache: &mut ConvCache, batch: usize) {
+    let gamma = params.get(&format!("bn{name}.weight")).to_vec();
+    let beta = params.get(&format!("bn{name}.bias")).to_vec();
+    bn_forward_train(
+        cache.z.as_ref(),
+        &gamma,
+        &beta,
+        cache.xhat.as_mut(),
+        cache.a.as_mut(),
+        &mut cache.mean,
+        &mut cache.var,
+        &mut cache.inv_std,
+    );
+    let n = batch as f32;
+    let unbias = if n > 1.0 { n / (n - 1.0) } else { 1.0 };
+    let rm = params.get_mut(&format!("bn{name}.running_mean"));
+    for (r, m) in rm.iter_mut().zip(&cache.mean) {
+        *r = (1.0 - BN_MOMENTUM) * *r + BN_MOMENTUM * m;
+    }
+    let rv = params.get_mut(&format!("bn{name}.running_var"));
+    for (r, v) in rv.iter_mut().zip(&cache.var) {
+        *r = (1.0 - BN_MOMENTUM) * *r + BN_MOMENTUM * v * unbias;
+    }
+}
+
+/// Batch norm of layer `name` with the running statistics (what folding computes).
+fn bn_eval_step(params: &ParamSet, name: usize, cache: &mut ConvCache, batch: usize) {
+    let gamma = params.get(&format!("bn{name}.weight"));
+    let beta = params.get(&format!("bn{name}.bias"));
+    let rm = params.get(&format!("bn{name}.running_mean"));
+    let rv = params.get(&format!("bn{name}.running_var"));
+    for c in 0..rm.len() {
+        cache.mean[c] = rm[c];
+        cache.var[c] = rv[c];
+        cache.inv_std[c] = 1.0 / (rv[c] + BN_EPS).sqrt();
+    }
+    for j in 0..batch {
+        for c in 0..rm.len() {
+            let xh = (cache.z[(c, j)] - cache.mean[c]) * cache.inv_std[c];
+            cache.xhat[(c, j)] = xh;
+            cache.a[(c, j)] = gamma[c] * xh + beta[c];
+        }
+    }
+}
+
+/// `z = W·x + b` for `fc{l}` over the first `n` columns of `input` into `out`.
+pub fn fc_forward(params: &ParamSet, l: usize, input: MatRef<'_, f32>, out: MatMut<'_, f32>) {
+    dense_forward(
+        params.matrix_t(&format!("fc{l}.weight")),
+        params.get(&format!("fc{l}.bias")),
+        input,
+        out,
+    );
+}
+
+/// Backward of [`fc_forward`]: gradients of `fc{l}` into `grads`, `∂L/∂input` into `dx`.
+pub fn fc_backward(
+    params: &ParamSet,
+    l: usize,
+    input: MatRef<'_, f32>,
+    dout: MatRef<'_, f32>,
+    grads: &mut [f32],
+    dx: MatMut<'_, f32>,
+) {
+    let wname = format!("fc{l}.weight");
+    let wi = params.index_of(&wname).expect("weight");
+    let bi = params.index_of(&format!("fc{l}.bias")).expect("bias");
+    let (wr, br) = (params.range(wi), params.range(bi));
+    let shape = &params.specs()[wi].shape;
+    let (fout, fin) = (shape[0], shape[1]);
+    let (gw, gb) = split_two(grads, wr, br);
+    dense_backward(
+        params.matrix_t(&wname),
+        input,
+        dout,
+        MatMut::from_column_major_slice_mut(gw, fin, fout),
+        gb,
+        Some(dx),
+    );
+}
+
+/// Forward/backward workspace for the unfolded per-epoch network (training graph).
+pub struct Graph {
+    stack: ConvStack,
+    fc: Vec<Mat<f32>>,
+    dfc: Vec<Mat<f32>>,
+}
+
+impl Graph {
+    /// Buffers for mini-batches of exactly `batch` samples.
+    pub fn new(arch: &Arch, batch: usize) -> Self {
+        let fc: Vec<Mat<f32>> = arch
+            .fc_dims()
+            .iter()
+            .map(|&(_, o)| Mat::zeros(o, batch))
+            .collect();
+        Self {
+            stack: ConvStack::new(arch, batch),
+            dfc: fc.iter().map(|m| Mat::zeros(m.nrows(), batch)).collect(),
+            fc,
+        }
+    }
+
+    /// The input buffer (`input × batch`), to be filled with scaled velocities.
+    pub fn input_mut(&mut self) -> MatMut<'_, f32> {
+        self.stack.input_mut()
+    }
+
+    /// The network outputs of the last forward pass (`outputs × batch`).
+    pub fn output(&self) -> MatRef<'_, f32> {
+        self.fc.last().expect("fc layers").as_ref()
+    }
+
+    /// Set the dropout mask for the next forward pass (`p = 0` disables it).
+    pub fn sample_dropout(&mut self, p: f32, rng: &mut impl Rng) {
+        self.stack.sample_dropout(p, rng)
+    }
+
+    /// Forward pass. In [`Mode::Train`] the running statistics in `params` are updated.
+    pub fn forward(&mut self, params: &mut ParamSet, mode: Mode) {
+        self.stack.forward(params, mode);
+        for l in 0..self.fc.len() {
+            let (done, todo) = self.fc.split_at_mut(l);
+            let input = if l == 0 {
+                self.stack.features()
+            } else {
+                done[l - 1].as_ref()
+            };
+            fc_forward(params, l + 1, input, todo[0].as_mut());
+        }
+    }
+
+    /// Backward pass of a [`Mode::Train`] forward: `dout` is `∂L/∂outputs`; gradients for
+    /// every tensor go into `grads` (same layout as `params.data()`, buffers left at zero).
+    pub fn backward(&mut self, params: &ParamSet, dout: MatRef<'_, f32>, grads: &mut [f32]) {
+        let n_fc = self.fc.len();
+        self.dfc[n_fc - 1].as_mut().copy_from(dout);
+        for l in (0..n_fc).rev() {
+            let (dprev, dcur) = self.dfc.split_at_mut(l);
+            let stack = &mut self.stack;
+            let (input, dx) = if l == 0 {
+                let last = stack.conv.len() - 1;
+                (stack.conv[last].a.as_ref(), stack.da[last].as_mut())
+            } else {
+                (self.fc[l - 1].as_ref(), dprev[l - 1].as_mut())
+            };
+            fc_backward(params, l + 1, input, dcur[0].as_ref(), grads, dx);
+        }
+        self.stack.backward(params, grads);
     }
 }
 

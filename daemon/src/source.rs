@@ -1,0 +1,292 @@
+//! One served source: its ports (made once, when the source is added) and the state
+//! that changes while serving it, in one struct.
+//!
+//! The event loop's WaitSet guards borrow every source's listener for as long as the
+//! set of sources stays the same, so serving a source must work through a shared
+//! borrow: the ports need nothing more, and the state sits in a `RefCell`, borrowed
+//! mutably for one sample or one housekeeping step at a time (one thread, so never
+//! contended; the check is a flag test).
+
+use std::cell::RefCell;
+use std::time::{Duration, Instant};
+
+use ghnet_client::iceoryx2::prelude::*;
+use ghnet_client::{HeadingEstimate, HeadingPublisher, IpcConfig, VelocitySubscriber};
+use tracing::{debug, info, warn};
+
+use crate::answer::{stale_message, Batch, Counters, Tracker};
+use crate::output::{Burst, HeadingOutput};
+use crate::remote::{LatencyRing, ZenohSide};
+
+/// How a source came to be served.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Kind {
+    /// From `sources.static`: served from the start, never dropped.
+    Static,
+    /// Found by discovery: dropped when its publishers are gone.
+    Discovered,
+}
+
+impl Kind {
+    fn as_str(self) -> &'static str {
+        match self {
+            Kind::Static => "static",
+            Kind::Discovered => "discovered",
+        }
+    }
+}
+
+/// A served source.
+pub(crate) struct Source {
+    pub(crate) name: String,
+    pub(crate) kind: Kind,
+    pub(crate) velocity: VelocitySubscriber,
+    /// Full name of the iceoryx2 heading service, for logs.
+    heading_service: String,
+    /// Every destination of this source's answers; the iceoryx2 heading service
+    /// first. Boxed once per source, so per sample only a virtual call.
+    outputs: Vec<Box<dyn HeadingOutput>>,
+    pub(crate) state: RefCell<State>,
+}
+
+/// Everything that changes while serving a source.
+pub(crate) struct State {
+    pub(crate) tracker: Tracker,
+    /// The last answer and recent processing times, for the Zenoh stats queryable
+    /// (`last` is also what a `Stale` message echoes).
+    pub(crate) last: Option<HeadingEstimate>,
+    pub(crate) latency: LatencyRing,
+    silence: Silence,
+}
+
+/// Silence watch, kept by housekeeping only (the per-sample path does not touch it).
+struct Silence {
+    /// `received` as seen at the last pass, and when it last changed.
+    seen_received: u64,
+    last_activity: Instant,
+    /// Whether the current silence has had its one `Stale` message.
+    stale_sent: bool,
+}
+
+impl Source {
+    /// Opens the ports of `name` on `node`: the velocity subscriber, the iceoryx2
+    /// heading publisher and, with Zenoh on, the Zenoh heading publishers. The
+    /// counters continue `counters` (a source that comes back keeps its totals); the
+    /// sequence tracking starts afresh, since a new publisher may restart its
+    /// sequence numbers.
+    pub(crate) fn open(
+        node: &Node<ipc::Service>,
+        ipc: &IpcConfig,
+        zenoh: Option<&ZenohSide>,
+        name: &str,
+        kind: Kind,
+        counters: Counters,
+    ) -> anyhow::Result<Self> {
+        let velocity = VelocitySubscriber::with_node(node, ipc, name)?;
+        let heading = HeadingPublisher::with_node(node, ipc, name)?;
+        let heading_service = heading.service_name().to_owned();
+        let mut outputs: Vec<Box<dyn HeadingOutput>> = vec![Box::new(heading)];
+        if let Some(z) = zenoh {
+            outputs.push(Box::new(z.output(ipc, name)?));
+        }
+        let tracker = Tracker::resume(counters);
+        Ok(Self {
+            name: name.to_owned(),
+            kind,
+            velocity,
+            heading_service,
+            outputs,
+            state: RefCell::new(State {
+                silence: Silence {
+                    seen_received: tracker.counters.received,
+                    last_activity: Instant::now(),
+                    stale_sent: false,
+                },
+                tracker,
+                last: None,
+                latency: LatencyRing::new(),
+            }),
+        })
+    }
+
+    pub(crate) fn log_added(&self) {
+        info!(
+            source = %self.name,
+            kind = self.kind.as_str(),
+            velocity = %self.velocity.service_name(),
+            heading = %self.heading_service,
+            "source added"
+        );
+    }
+
+    /// The counters so far.
+    pub(crate) fn counters(&self) -> Counters {
+        self.state.borrow().tracker.counters
+    }
+
+    /// Logs the counters with `what` as the message (the periodic `stats` line, and
+    /// `source removed`).
+    pub(crate) fn log_counters(&self, what: &str) {
+        let c = self.counters();
+        info!(
+            source = %self.name,
+            received = c.received,
+            answered = c.answered,
+            invalid = c.invalid,
+            gaps = c.gaps,
+            duplicates = c.duplicates,
+            backwards = c.backwards,
+            send_errors = c.send_errors,
+            stale = c.stale,
+            publishers = self.velocity.publisher_count(),
+            "{what}"
+        );
+    }
+
+    /// Takes this source's buffered samples into `batch` (`owner` records `me` per
+    /// sample) until the batch is full or the buffer is empty. Consumes the pending
+    /// wake-up notifications first, or the WaitSet fires again at once. `true` when
+    /// the buffer was emptied, `false` when samples are left for another round.
+    pub(crate) fn take_samples(
+        &self,
+        batch: &mut Batch,
+        owner: &mut Vec<usize>,
+        me: usize,
+    ) -> bool {
+        if let Err(e) = self.velocity.drain_notifications() {
+            debug!(source = %self.name, error = %e, "draining notifications failed");
+        }
+        while batch.samples.len() < batch.capacity() {
+            match self.velocity.try_recv() {
+                Ok(Some(s)) => {
+                    batch.samples.push(s);
+                    owner.push(me);
+                }
+                Ok(None) => return true,
+                Err(e) => {
+                    warn!(source = %self.name, error = %e, "receiving failed");
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Stamps the processing time (since `t0`) on `answer`, publishes it on every
+    /// output and books the result; `true` if every output took it.
+    pub(crate) fn deliver(
+        &self,
+        state: &mut State,
+        mut answer: HeadingEstimate,
+        t0: Instant,
+        burst: Burst,
+    ) -> bool {
+        answer.processing_ns = t0.elapsed().as_nanos() as u64;
+        state.latency.push(answer.processing_ns);
+        state.last = Some(answer);
+        let mut delivered = true;
+        for out in &self.outputs {
+            if let Err(e) = out.publish(&answer, burst) {
+                delivered = false;
+                // 1st, 2nd, 4th, 8th, ... failure: visible without flooding the log.
+                let n = state.tracker.counters.send_errors + 1;
+                if n.is_power_of_two() {
+                    warn!(source = %self.name, output = out.kind(), error = %e, failures = n, "cannot publish heading");
+                }
+            }
+        }
+        let c = &mut state.tracker.counters;
+        if delivered {
+            c.answered += 1;
+        } else {
+            c.send_errors += 1;
+        }
+        delivered
+    }
+
+    /// Ends this source's part of a wake-up: wakes its iceoryx2 listeners once for
+    /// all its answers (`flush`, if it answered any) and refreshes its Zenoh stats
+    /// snapshot.
+    pub(crate) fn settle(&self, answered_any: bool, zenoh: Option<&ZenohSide>) {
+        if answered_any {
+            for out in &self.outputs {
+                if let Err(e) = out.flush() {
+                    debug!(source = %self.name, output = out.kind(), error = %e, "flush failed");
+                }
+            }
+        }
+        if let Some(z) = zenoh {
+            z.refresh(&self.name, &self.state.borrow());
+        }
+    }
+
+    /// A discovered source whose publishers are all gone, and that has had its
+    /// `Stale` message if one is due: housekeeping drops it. A source that answered
+    /// something is kept until its Stale message, so consumers of a crashed source
+    /// learn it (one that never sent anything has nothing to be stale about).
+    pub(crate) fn is_gone(&self, stale_after: Option<Duration>) -> bool {
+        let state = self.state.borrow();
+        let stale_pending =
+            stale_after.is_some() && state.last.is_some() && !state.silence.stale_sent;
+        self.kind == Kind::Discovered && self.velocity.publisher_count() == 0 && !stale_pending
+    }
+
+    /// Notices samples since the last pass ("served again" after a Stale message), or
+    /// a silence longer than `stale_after`: then publishes ONE `Stale` message on
+    /// every output, logs and counts it. The silence is measured from the pass that
+    /// last saw a sample, so the message comes between `stale_after` and that plus
+    /// two housekeeping intervals after the last sample.
+    pub(crate) fn watch_silence(
+        &self,
+        now: Instant,
+        stale_after: Option<Duration>,
+        zenoh: Option<&ZenohSide>,
+    ) {
+        let mut state = self.state.borrow_mut();
+        let State {
+            tracker,
+            last,
+            silence,
+            ..
+        } = &mut *state;
+        let received = tracker.counters.received;
+        if received != silence.seen_received {
+            silence.seen_received = received;
+            silence.last_activity = now;
+            if silence.stale_sent {
+                silence.stale_sent = false;
+                info!(source = %self.name, "served again: samples arrive after the Stale message");
+            }
+            return;
+        }
+        let (Some(after), Some(last)) = (stale_after, *last) else {
+            return;
+        };
+        let silent = now.duration_since(silence.last_activity);
+        if silence.stale_sent || silent <= after {
+            return;
+        }
+        silence.stale_sent = true;
+        tracker.counters.stale += 1;
+        self.publish_stale(&last, silent);
+        if let Some(z) = zenoh {
+            z.refresh(&self.name, &state);
+        }
+    }
+
+    fn publish_stale(&self, last: &HeadingEstimate, silent: Duration) {
+        let msg = stale_message(last);
+        for out in &self.outputs {
+            if let Err(e) = out.publish(&msg, Burst::Last).and_then(|()| out.flush()) {
+                warn!(source = %self.name, output = out.kind(), error = %e, "cannot publish the Stale message");
+            }
+        }
+        warn!(
+            source = %self.name,
+            last_seq = last.seq,
+            silent_ms = silent.as_millis() as u64,
+            publishers = self.velocity.publisher_count(),
+            "source stale: no sample for longer than sources.stale_after_ms; published one Stale heading"
+        );
+    }
+}

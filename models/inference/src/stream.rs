@@ -1,0 +1,789 @@
+//! Streaming inference: a per-source [`History`] and the [`StreamPredictor`] that answers
+//! one epoch at a time from it, for every kind of model.
+//!
+//! One epoch cannot beat atan2 on the full circle (the posterior of one velocity under a
+//! uniform prior is symmetric around it); a vehicle's heading is continuous, so history
+//! can. Three engines answer through the same calls:
+//!
+//! * **temporal** (the default model): each epoch's inputs ([`inputs`]), expressed
+//!   relative to the model's own previous heading so the network never has to compute
+//!   an angle, go through the paper's kernel-1 convolution stack once; the features are
+//!   pushed into a ring of the last `W` epochs, and the fully connected head (collapsed
+//!   to one affine map, as in the paper's network) reads the ring and gives the gains of
+//!   a filter step ([`crate::head::Head::Filter`]): hold the previous heading, follow the
+//!   course (how far: a learned gain), and whether the course is turned by 180°
+//!   (reversing). Per epoch that is one
+//!   convolution pass and one small matrix-vector product; nothing is recomputed and
+//!   nothing is allocated.
+//! * **kf**: the circular Kalman filter on atan2 ([`ModelKind::Kf`]): random-walk heading,
+//!   measurement σ = σ_v/ŝ, the baseline every table shows.
+//! * **per-epoch** models (`paper-s1`, `ghnet-epoch`) ignore the history.
+//!
+//! History rules, the same in ghnetd and in `ghnet infer`: epochs of one source in
+//! arrival order; the history is cleared when time goes backwards, when a time step is
+//! longer than the model's `max_gap_s` (the vehicle may have turned anywhere meanwhile),
+//! and on an explicit [`History::reset`] (a restarted source). Each clearing is counted
+//! ([`History::resets`]). Invalid epochs are answered `Invalid` and leave the history as
+//! it was.
+//!
+//! A stopped vehicle (speed under `max(stationary_speed, 3·sAcc)`) that has a heading
+//! from its history is answered [`Status::Held`] with that heading and a σ that grows
+//! with the time stopped; without one it is `Stationary`.
+
+use std::sync::Arc;
+
+use crate::head::{
+    accuracy_sigma_base, filter_step, heading_deg, scale_input, KalmanBase, MAX_STD_DEG,
+};
+use crate::model::{finish_epoch, Engine, Model, Prediction, Status, StatusPolicy};
+use crate::net::Scratch;
+use crate::weights::ModelKind;
+
+/// Per-epoch inputs of the temporal network (see [`inputs`]).
+pub const INPUTS: usize = 11;
+
+/// Speed (m/s) above which an epoch counts as moving for the history's clocks (time
+/// stopped, time reversing), when the receiver's accuracy does not demand more.
+pub const MOVING_SPEED: f32 = 0.5;
+
+/// Largest σ in radians (a uniform error on the circle), as a log: the "no heading" σ.
+fn log_sigma_cap() -> f32 {
+    MAX_STD_DEG.to_radians().ln()
+}
+
+/// One epoch of one source.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Epoch {
+    /// Time, seconds (any origin; only differences matter).
+    pub t_s: f64,
+    /// North velocity, m/s.
+    pub v_north: f32,
+    /// East velocity, m/s.
+    pub v_east: f32,
+    /// Receiver speed accuracy (1σ, m/s); NaN when unknown.
+    pub speed_acc: f32,
+}
+
+/// Why a history was cleared.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Reset {
+    /// A time step longer than the model's `max_gap_s`.
+    Gap,
+    /// Time went backwards.
+    Backwards,
+    /// [`History::reset`]: the caller knows the source restarted.
+    Explicit,
+}
+
+/// How often a history was cleared, by cause (what ghnetd reports in its stats).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ResetCounts {
+    /// Time gaps over the limit.
+    pub gap: u64,
+    /// Time going backwards.
+    pub backwards: u64,
+    /// Explicit resets.
+    pub explicit: u64,
+}
+
+/// The scalar recurrent state one step reads and writes. The lab's training feeds the
+/// network these values from a recurrent run (teacher forcing on its own outputs), so
+/// they are public and produced only by [`advance`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepState {
+    /// Previous heading, radians (not wrapped).
+    pub psi: f32,
+    /// Previous raw `log σ` (σ in radians, before calibration).
+    pub log_sigma: f32,
+    /// Whether `psi` exists (false on the first epoch of a history).
+    pub has_prior: bool,
+    /// Seconds since the last moving epoch.
+    pub t_still: f32,
+    /// Seconds the course has been opposite the heading while moving (a reversal in
+    /// progress, or a heading that is wrong by 180°: the network tells them apart).
+    pub t_opposite: f32,
+}
+
+impl StepState {
+    /// The state of an empty history.
+    pub const EMPTY: StepState = StepState {
+        psi: 0.0,
+        log_sigma: 0.0,
+        has_prior: false,
+        t_still: 0.0,
+        t_opposite: 0.0,
+    };
+}
+
+/// Whether an epoch counts as moving: over [`MOVING_SPEED`] and over 4 σ of the
+/// receiver's reported noise.
+#[inline]
+pub fn moving(speed: f32, speed_acc: f32) -> bool {
+    speed >= MOVING_SPEED && !(speed_acc.is_finite() && speed < 4.0 * speed_acc)
+}
+
+/// The Kalman step of an epoch for a model of `kind` (temporal or kf) from the
+/// history's state: prior variance (previous σ² plus `q²·dt`; a uniform error without a
+/// previous heading) and measurement variance `(σ_v/ŝ)²`.
+pub fn kalman_base(
+    kind: &ModelKind,
+    state: &StepState,
+    v_north: f32,
+    v_east: f32,
+    dt: f32,
+) -> KalmanBase {
+    let (q, sv) = match *kind {
+        ModelKind::Temporal {
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+            ..
+        }
+        | ModelKind::Kf {
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+            ..
+        } => (q_deg_per_sqrt_s.to_radians(), sigma_v_mps),
+        ModelKind::Epoch => (0.0, f32::NAN),
+    };
+    let cap = MAX_STD_DEG.to_radians();
+    let r = accuracy_sigma_base(v_north, v_east, sv).unwrap_or(cap);
+    let p = if state.has_prior {
+        ((2.0 * state.log_sigma).exp() + q * q * dt).min(cap * cap)
+    } else {
+        cap * cap
+    };
+    KalmanBase { p, r2: r * r }
+}
+
+/// The temporal network's per-epoch inputs, all O(1): the course relative to the
+/// previous heading `(cos, sin)`, log and linear speed, the log measurement σ from
+/// sAcc and whether sAcc is known, the previous log σ, log dt, log time stopped, log
+/// time reversing, and the gain of the Kalman step it corrects. Relative angles make
+/// the network rotation-invariant.
+pub fn inputs(
+    state: &StepState,
+    v_north: f32,
+    v_east: f32,
+    speed_acc: f32,
+    dt: f32,
+    base: &KalmanBase,
+) -> [f32; INPUTS] {
+    let speed = v_north.hypot(v_east);
+    let a = v_east.atan2(v_north);
+    let prior = if state.has_prior { state.psi } else { a };
+    let (s, c) = (a - prior).sin_cos();
+    let acc = accuracy_sigma_base(v_north, v_east, speed_acc);
+    let cap = log_sigma_cap();
+    let log_sigma = if state.has_prior {
+        state.log_sigma.clamp(crate::head::LOG_SIGMA_MIN, cap)
+    } else {
+        cap
+    };
+    [
+        c,
+        s,
+        0.5 * (speed + 0.02).ln(),
+        speed.min(40.0) / 10.0,
+        acc.map_or(0.0, |r| 0.5 * r.max(1e-6).ln()),
+        if acc.is_some() { 1.0 } else { 0.0 },
+        0.5 * log_sigma,
+        0.5 * dt.clamp(0.01, 1000.0).ln(),
+        0.5 * state.t_still.ln_1p(),
+        0.5 * state.t_opposite.ln_1p(),
+        base.gain(),
+    ]
+}
+
+/// The state after an epoch answered with heading `psi` and raw `log_sigma`.
+pub fn advance(
+    state: &StepState,
+    v_north: f32,
+    v_east: f32,
+    speed_acc: f32,
+    dt: f32,
+    psi: f32,
+    log_sigma: f32,
+) -> StepState {
+    let speed = v_north.hypot(v_east);
+    let mv = moving(speed, speed_acc);
+    let opposite = (v_east.atan2(v_north) - psi).cos() < 0.0;
+    StepState {
+        psi: crate::head::wrap_rad(psi),
+        log_sigma,
+        has_prior: true,
+        t_still: if mv { 0.0 } else { state.t_still + dt },
+        t_opposite: match (mv, opposite) {
+            (true, true) => state.t_opposite + dt,
+            (true, false) => 0.0,
+            (false, _) => state.t_opposite,
+        },
+    }
+}
+
+/// The temporal head: the fully connected layers collapsed to `y = W·[f_t, …, f_{t−W+1}]
+/// + b` over the cached features of the last `window` epochs.
+#[derive(Debug, Clone)]
+pub struct WindowHead {
+    window: usize,
+    features: usize,
+    outputs: usize,
+    /// `outputs × (window·features)`, row-major; slot `k` (age in epochs) at columns
+    /// `k·features..`.
+    w: Vec<f32>,
+    b: Vec<f32>,
+}
+
+impl WindowHead {
+    /// From the collapsed map `w` (`outputs × window·features`) and bias.
+    pub fn new(w: faer::MatRef<'_, f32>, b: &[f32], window: usize) -> Self {
+        let (outputs, cols) = (w.nrows(), w.ncols());
+        assert!(window > 0 && cols.is_multiple_of(window) && b.len() == outputs);
+        Self {
+            window,
+            features: cols / window,
+            outputs,
+            w: (0..outputs)
+                .flat_map(|o| (0..cols).map(move |j| (o, j)))
+                .map(|(o, j)| w[(o, j)])
+                .collect(),
+            b: b.to_vec(),
+        }
+    }
+
+    /// Epochs in the window.
+    pub fn window(&self) -> usize {
+        self.window
+    }
+
+    /// Features per epoch.
+    pub fn features(&self) -> usize {
+        self.features
+    }
+
+    /// `out = W·ring + b` where `ring` holds `window` feature vectors and slot `k` (age
+    /// `k`, 0 = newest) is at `ring[((newest + window − k) % window)·features..]`; slots
+    /// `k ≥ filled` are empty (zero) and skipped.
+    pub fn apply(&self, ring: &[f32], newest: usize, filled: usize, out: &mut [f32]) {
+        let (w, c) = (self.window, self.features);
+        let cols = w * c;
+        for (o, y) in out.iter_mut().enumerate().take(self.outputs) {
+            let row = &self.w[o * cols..(o + 1) * cols];
+            let mut acc = self.b[o];
+            for k in 0..filled.min(w) {
+                let slot = (newest + w - k) % w;
+                let f = &ring[slot * c..(slot + 1) * c];
+                let wk = &row[k * c..(k + 1) * c];
+                acc += wk.iter().zip(f).map(|(a, b)| a * b).sum::<f32>();
+            }
+            *y = acc;
+        }
+    }
+}
+
+/// One source's history: the recurrent state, the time of the last epoch, the ring of
+/// cached per-epoch features, the reset counters. Fixed size once made; no step
+/// allocates.
+#[derive(Debug, Clone)]
+pub struct History {
+    state: StepState,
+    t_last: Option<f64>,
+    ring: Vec<f32>,
+    window: usize,
+    newest: usize,
+    filled: usize,
+    max_gap_s: f64,
+    resets: ResetCounts,
+    last_reset: Option<Reset>,
+}
+
+impl History {
+    /// An empty history sized for `model`, with the model's gap limit.
+    pub fn new(model: &Model) -> Self {
+        let (window, features) = match model.engine() {
+            Engine::Temporal { head, .. } => (head.window(), head.features()),
+            _ => (0, 0),
+        };
+        Self {
+            state: StepState::EMPTY,
+            t_last: None,
+            ring: vec![0.0; window * features],
+            window,
+            newest: 0,
+            filled: 0,
+            max_gap_s: model.meta().kind.max_gap_s().unwrap_or(f32::INFINITY) as f64,
+            resets: ResetCounts::default(),
+            last_reset: None,
+        }
+    }
+
+    /// Replace the gap limit (seconds); a step longer than this clears the history.
+    pub fn with_max_gap(mut self, max_gap_s: f64) -> Self {
+        self.max_gap_s = max_gap_s;
+        self
+    }
+
+    /// The gap limit in use, seconds.
+    pub fn max_gap_s(&self) -> f64 {
+        self.max_gap_s
+    }
+
+    /// Clear the history because the caller knows the source restarted (counted as
+    /// [`Reset::Explicit`]).
+    pub fn reset(&mut self) {
+        self.clear(Reset::Explicit);
+    }
+
+    /// Clear the history for a reason the caller detected itself, counted as `why`:
+    /// ghnetd answers a sample whose time went backwards `InvalidInput` without showing
+    /// it to the model, and clears the history with [`Reset::Backwards`] here.
+    pub fn reset_because(&mut self, why: Reset) {
+        self.clear(why);
+    }
+
+    /// Resets so far, by cause.
+    pub fn resets(&self) -> ResetCounts {
+        self.resets
+    }
+
+    /// The reset the last answered epoch caused, if any.
+    pub fn last_reset(&self) -> Option<Reset> {
+        self.last_reset
+    }
+
+    /// The recurrent state (previous heading, σ, clocks).
+    pub fn state(&self) -> &StepState {
+        &self.state
+    }
+
+    /// Replace the recurrent state. For training, which perturbs the previous heading to
+    /// teach the network to recover from its own mistakes, and for tests.
+    pub fn set_state(&mut self, state: StepState) {
+        self.state = state;
+    }
+
+    /// Epochs in the feature ring (at most the window).
+    pub fn len(&self) -> usize {
+        self.filled
+    }
+
+    /// True when no epoch has been taken since the last reset.
+    pub fn is_empty(&self) -> bool {
+        self.t_last.is_none()
+    }
+
+    /// Clear without counting: [`crate::Predictor`] runs stateful models one sample at a
+    /// time this way.
+    pub(crate) fn clear_uncounted(&mut self) {
+        self.state = StepState::EMPTY;
+        self.t_last = None;
+        self.ring.fill(0.0);
+        self.newest = 0;
+        self.filled = 0;
+    }
+
+    fn clear(&mut self, why: Reset) {
+        match why {
+            Reset::Gap => self.resets.gap += 1,
+            Reset::Backwards => self.resets.backwards += 1,
+            Reset::Explicit => self.resets.explicit += 1,
+        }
+        self.last_reset = Some(why);
+        self.clear_uncounted();
+    }
+
+    /// Apply the time rules for an epoch at `t_s` and return its time step (0 for the
+    /// first epoch of a history).
+    fn step_time(&mut self, t_s: f64) -> f32 {
+        self.last_reset = None;
+        if let Some(t0) = self.t_last {
+            if t_s < t0 {
+                self.clear(Reset::Backwards);
+            } else if t_s - t0 > self.max_gap_s {
+                self.clear(Reset::Gap);
+            }
+        }
+        let dt = self.t_last.map_or(0.0, |t0| (t_s - t0) as f32);
+        self.t_last = Some(t_s);
+        dt
+    }
+
+    /// The ring slot the next epoch's features go to (becomes the newest).
+    fn push_slot(&mut self) -> &mut [f32] {
+        let c = self.ring.len() / self.window.max(1);
+        self.newest = if self.filled == 0 {
+            0
+        } else {
+            (self.newest + 1) % self.window
+        };
+        self.filled = (self.filled + 1).min(self.window);
+        &mut self.ring[self.newest * c..(self.newest + 1) * c]
+    }
+}
+
+/// Runs any model on a stream of epochs; owns the scratch, so a step allocates nothing.
+/// One per thread; one [`History`] per source.
+#[derive(Debug)]
+pub struct StreamPredictor {
+    model: Arc<Model>,
+    policy: StatusPolicy,
+    scratch: Option<Scratch>,
+    y: Vec<f32>,
+}
+
+impl StreamPredictor {
+    /// A predictor for `model` with the default [`StatusPolicy`].
+    pub fn new(model: Arc<Model>) -> Self {
+        let scratch = model.network().map(|n| n.scratch(1));
+        let y = vec![0.0; model.network().map_or(0, |n| n.outputs()).max(8)];
+        Self {
+            model,
+            policy: StatusPolicy::default(),
+            scratch,
+            y,
+        }
+    }
+
+    /// Replace the status thresholds.
+    pub fn with_policy(mut self, policy: StatusPolicy) -> Self {
+        self.policy = policy;
+        self
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Arc<Model> {
+        &self.model
+    }
+
+    /// The thresholds in use.
+    pub fn policy(&self) -> &StatusPolicy {
+        &self.policy
+    }
+
+    /// A new, empty history for one source of this model.
+    pub fn history(&self) -> History {
+        History::new(&self.model)
+    }
+
+    /// Answer one epoch of the source whose history is `h`. Never panics: a bad
+    /// velocity gives [`Status::Invalid`] and leaves `h` untouched.
+    pub fn predict(&mut self, h: &mut History, e: &Epoch) -> Prediction {
+        let (vn, ve) = (e.v_north, e.v_east);
+        let speed = vn.hypot(ve);
+        if !(vn.is_finite()
+            && ve.is_finite()
+            && speed <= self.policy.max_speed
+            && e.t_s.is_finite())
+        {
+            h.last_reset = None;
+            return Prediction {
+                speed,
+                ..Prediction::INVALID
+            };
+        }
+        let acc = if e.speed_acc.is_finite() && e.speed_acc > 0.0 {
+            e.speed_acc
+        } else {
+            f32::NAN
+        };
+        let dt = h.step_time(e.t_s);
+        let model = self.model.clone();
+        let (psi, std_deg) = match model.engine() {
+            Engine::Epoch(net) => {
+                let x = scale_input(vn, ve, model.meta().input_scale_mps);
+                let scratch = self.scratch.as_mut().expect("network scratch");
+                let k = net.outputs();
+                net.forward_one(&x, &mut self.y[..k], scratch);
+                let p = finish_epoch(&model, &self.policy, &self.y[..k], vn, ve, speed, acc);
+                h.state = advance(&h.state, vn, ve, acc, dt, p.heading_deg.to_radians(), 0.0);
+                return p;
+            }
+            Engine::Kf => {
+                // The plain Kalman filter is the filter head with zero outputs.
+                let base = kalman_base(&model.meta().kind, &h.state, vn, ve, dt);
+                self.y[..3].copy_from_slice(&[0.0, -1.0, 0.0]);
+                self.filter(h, &base, vn, ve, acc, dt, 1.0)
+            }
+            Engine::Temporal { features, head } => {
+                let base = kalman_base(&model.meta().kind, &h.state, vn, ve, dt);
+                let x = inputs(&h.state, vn, ve, acc, dt, &base);
+                let scratch = self.scratch.as_mut().expect("network scratch");
+                features.forward_one(&x, h.push_slot(), scratch);
+                head.apply(&h.ring, h.newest, h.filled, &mut self.y[..3]);
+                self.filter(h, &base, vn, ve, acc, dt, model.meta().sigma_scale)
+            }
+        };
+        self.finish(psi, std_deg, vn, ve, speed, acc)
+    }
+
+    /// The filter step from outputs `self.y`: heading (radians) and reported σ
+    /// (degrees, raw σ times `sigma_scale`); updates the history's state.
+    #[allow(clippy::too_many_arguments)] // one epoch's numbers
+    fn filter(
+        &mut self,
+        h: &mut History,
+        base: &KalmanBase,
+        vn: f32,
+        ve: f32,
+        acc: f32,
+        dt: f32,
+        sigma_scale: f32,
+    ) -> (f32, f32) {
+        let a = ve.atan2(vn);
+        let prior = if h.state.has_prior { h.state.psi } else { a };
+        let (psi, log_sigma, _, _) = filter_step(&self.y, a, prior, base);
+        let log_sigma = log_sigma.clamp(crate::head::LOG_SIGMA_MIN, log_sigma_cap());
+        h.state = advance(&h.state, vn, ve, acc, dt, psi, log_sigma);
+        let reported = (log_sigma + self.y[2]).min(crate::head::LOG_SIGMA_MAX);
+        let std = (reported.exp() * sigma_scale).to_degrees();
+        (psi, std.min(MAX_STD_DEG))
+    }
+
+    /// Heading in [0, 360), σ, status: `Held` for a stopped vehicle with a heading.
+    fn finish(&self, psi: f32, std: f32, vn: f32, ve: f32, speed: f32, acc: f32) -> Prediction {
+        let deg = psi.to_degrees().rem_euclid(360.0);
+        let deg = if deg >= 360.0 { 0.0 } else { deg };
+        let held_speed = if acc.is_finite() {
+            self.policy.stationary_speed.max(3.0 * acc)
+        } else {
+            self.policy.stationary_speed
+        };
+        let status = if speed < held_speed {
+            if std < 0.99 * MAX_STD_DEG {
+                Status::Held
+            } else {
+                Status::Stationary
+            }
+        } else if std.is_nan() || std > self.policy.max_std_deg {
+            Status::LowSpeed
+        } else {
+            Status::Ok
+        };
+        Prediction {
+            heading_deg: deg,
+            std_deg: std,
+            atan2_deg: heading_deg(vn, ve),
+            speed,
+            status,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::head::Head;
+    use crate::params::{Arch, ParamSet};
+    use crate::weights::{ModelMeta, FORMAT};
+    use rand::{Rng, SeedableRng};
+
+    fn meta(arch: Arch, kind: ModelKind, head: Head) -> ModelMeta {
+        ModelMeta {
+            format: FORMAT.into(),
+            name: "test".into(),
+            architecture: arch,
+            activation: "gelu_tanh".into(),
+            head,
+            input_scale_mps: 1.0,
+            heading_range_deg: [0.0, 360.0],
+            sigma_scale: 1.0,
+            accuracy_sigma_scale: f32::NAN,
+            training_data: serde_json::Value::Null,
+            training: serde_json::Value::Null,
+            metrics: serde_json::Value::Null,
+            kind,
+        }
+    }
+
+    /// A random temporal model (small widths, window 4) that survives a file round trip.
+    pub(crate) fn temporal_model(seed: u64) -> Model {
+        let mut arch = Arch::temporal(INPUTS, 4, 3);
+        arch.conv = vec![8, 12, 6];
+        arch.fc = vec![7, 5];
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let p = ParamSet::init(&arch, |b| rng.random_range(-b..b));
+        let kind = ModelKind::Temporal {
+            max_gap_s: 5.0,
+            q_deg_per_sqrt_s: 10.0,
+            sigma_v_mps: 0.3,
+        };
+        let m = meta(arch, kind, Head::Filter);
+        let bytes = crate::weights::to_bytes(&p, &m);
+        Model::from_bytes("test", &bytes).expect("round trip")
+    }
+
+    fn kf_model() -> Model {
+        let arch = Arch {
+            input: 0,
+            conv: vec![],
+            fc: vec![],
+            output: 0,
+            window: 1,
+        };
+        let kind = ModelKind::Kf {
+            q_deg_per_sqrt_s: 2.0,
+            sigma_v_mps: 0.2,
+            max_gap_s: 5.0,
+        };
+        let m = meta(
+            arch,
+            kind,
+            Head::Residual {
+                range_deg: [0.0, 360.0],
+            },
+        );
+        let bytes = crate::weights::to_bytes(&ParamSet::zeros(&m.architecture), &m);
+        Model::from_bytes("kf", &bytes).expect("kf round trip")
+    }
+
+    fn drive(n: usize) -> Vec<Epoch> {
+        (0..n)
+            .map(|i| {
+                let t = i as f64 * 0.5;
+                let s = if (20..30).contains(&i) { 0.0 } else { 3.0 };
+                let h = (i as f32 * 0.05).sin();
+                Epoch {
+                    t_s: t,
+                    v_north: s * h.cos() + 0.01 * (i % 7) as f32,
+                    v_east: s * h.sin() - 0.01 * (i % 5) as f32,
+                    speed_acc: if i % 3 == 0 { f32::NAN } else { 0.1 },
+                }
+            })
+            .collect()
+    }
+
+    /// The streamed answer equals recomputing every feature in the window from the
+    /// recorded inputs and applying the unfolded head: nothing stale is cached.
+    #[test]
+    fn streaming_equals_window_recomputation() {
+        let model = Arc::new(temporal_model(1));
+        let Engine::Temporal { features, .. } = model.engine() else {
+            panic!("temporal")
+        };
+        let (w_fc, b_fc) = crate::net::collapse_fc(model.params());
+        let mut sp = StreamPredictor::new(model.clone());
+        let mut h = sp.history();
+        let mut scratch = features.scratch(1);
+        let c = features.outputs();
+        let mut xs: Vec<[f32; INPUTS]> = Vec::new();
+        for e in drive(60) {
+            let dt = h.t_last.map_or(0.0, |t| (e.t_s - t) as f32);
+            let acc = if e.speed_acc > 0.0 {
+                e.speed_acc
+            } else {
+                f32::NAN
+            };
+            let state = if h.t_last.is_some_and(|t| e.t_s - t <= 5.0 && e.t_s >= t) {
+                h.state
+            } else {
+                StepState::EMPTY
+            };
+            let base = kalman_base(&model.meta().kind, &state, e.v_north, e.v_east, dt);
+            xs.push(inputs(&state, e.v_north, e.v_east, acc, dt, &base));
+            let prior = state;
+            let p = sp.predict(&mut h, &e);
+            // Recompute: features of the last W inputs, newest first, zero when absent.
+            let mut flat = vec![0.0f32; 4 * c];
+            for k in 0..4.min(xs.len()) {
+                let mut f = vec![0.0f32; c];
+                features.forward_one(&xs[xs.len() - 1 - k], &mut f, &mut scratch);
+                flat[k * c..(k + 1) * c].copy_from_slice(&f);
+            }
+            let y: Vec<f32> = (0..3)
+                .map(|o| b_fc[o] + (0..4 * c).map(|j| w_fc[(o, j)] * flat[j]).sum::<f32>())
+                .collect();
+            let a = e.v_east.atan2(e.v_north);
+            let prior = if prior.has_prior { prior.psi } else { a };
+            let psi = filter_step(&y, a, prior, &base)
+                .0
+                .to_degrees()
+                .rem_euclid(360.0);
+            let d = (psi - p.heading_deg).rem_euclid(360.0);
+            assert!(d.min(360.0 - d) < 1e-3, "{psi} vs {}", p.heading_deg);
+        }
+    }
+
+    #[test]
+    fn history_resets_on_gap_backwards_and_request() {
+        let model = Arc::new(temporal_model(2));
+        let mut sp = StreamPredictor::new(model);
+        let mut h = sp.history();
+        let e = |t: f64| Epoch {
+            t_s: t,
+            v_north: 2.0,
+            v_east: 0.0,
+            speed_acc: 0.1,
+        };
+        for t in [0.0, 1.0, 2.0] {
+            sp.predict(&mut h, &e(t));
+        }
+        assert_eq!(h.len(), 3);
+        assert_eq!(h.resets(), ResetCounts::default());
+        sp.predict(&mut h, &e(10.0)); // gap 8 s > 5 s
+        assert_eq!(h.last_reset(), Some(Reset::Gap));
+        assert_eq!(h.len(), 1);
+        sp.predict(&mut h, &e(9.0)); // backwards
+        assert_eq!(h.last_reset(), Some(Reset::Backwards));
+        sp.predict(&mut h, &e(9.5));
+        assert_eq!(h.last_reset(), None);
+        assert_eq!(h.len(), 2);
+        h.reset();
+        assert!(h.is_empty());
+        let nan = Epoch {
+            v_north: f32::NAN,
+            ..e(9.7)
+        };
+        assert_eq!(sp.predict(&mut h, &nan).status, Status::Invalid);
+        assert!(h.is_empty(), "an invalid epoch leaves the history alone");
+        assert_eq!(
+            h.resets(),
+            ResetCounts {
+                gap: 1,
+                backwards: 1,
+                explicit: 1
+            }
+        );
+    }
+
+    /// The filter holds through a stop (`Held`, σ growing) and answers `Stationary`
+    /// when it never had a heading.
+    #[test]
+    fn kf_holds_a_stopped_vehicle() {
+        let model = Arc::new(kf_model());
+        let mut sp = StreamPredictor::new(model);
+        let mut h = sp.history();
+        let ep = |t: f64, vn: f32, ve: f32| Epoch {
+            t_s: t,
+            v_north: vn,
+            v_east: ve,
+            speed_acc: f32::NAN,
+        };
+        let first = sp.predict(&mut h, &ep(0.0, 0.01, 0.0));
+        assert_eq!(first.status, Status::Stationary);
+        for i in 1..10 {
+            sp.predict(&mut h, &ep(i as f64, 0.0, 5.0));
+        }
+        let mut last_std = 0.0;
+        for i in 10..20 {
+            let p = sp.predict(&mut h, &ep(i as f64, 0.02, -0.01));
+            assert_eq!(p.status, Status::Held);
+            assert!((p.heading_deg - 90.0).abs() < 2.0, "{i} {p:?}");
+            assert!(p.std_deg > last_std);
+            last_std = p.std_deg;
+        }
+    }
+
+    #[test]
+    fn stateless_predictor_answers_stateful_models_as_first_epochs() {
+        for model in [Arc::new(kf_model()), Arc::new(temporal_model(3))] {
+            let mut p = crate::Predictor::new(model);
+            let a = p.predict(0.0, 3.0);
+            let b = p.predict(0.0, 3.0);
+            assert_eq!(a, b);
+            assert_ne!(a.status, Status::Held);
+            let mut out = [Prediction::INVALID; 2];
+            p.predict_batch(&[0.0, f32::NAN], &[3.0, 1.0], &mut out);
+            assert_eq!(out[0], a);
+            assert_eq!(out[1].status, Status::Invalid);
+        }
+    }
+}

@@ -1,0 +1,317 @@
+//! The `ghnet` subcommands of temporal models: the `ghnet-temporal` recipe, training on
+//! users' logs, and streamed evaluation.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+
+use ghnet_lab::drive::Platform;
+use ghnet_lab::plot::{plot_heading_timeline, Series};
+use ghnet_lab::streval;
+use ghnet_lab::temporal::TemporalConfig;
+use ghnet_lab::timeline::{self, TemporalRecipe};
+use ghnet_lab::train::{self, Dataset, TrainConfig};
+use ghnet_models::head::Head;
+use ghnet_models::weights::{ModelMeta, FORMAT};
+use ghnet_models::{Arch, Model};
+
+/// `ghnet train --recipe ghnet-temporal`: simulate, tune `kf` on validation tracks
+/// (written beside the output as `kf.safetensors`), train, judge on test tracks.
+pub fn train_temporal_recipe(
+    name: &str,
+    output: &Path,
+    seed: Option<u64>,
+    epochs: Option<usize>,
+) -> Result<()> {
+    let t0 = std::time::Instant::now();
+    let mut r = TemporalRecipe::named(name).context("not a temporal recipe")?;
+    if let Some(s) = seed {
+        r.train.seed = s;
+    }
+    if let Some(e) = epochs {
+        r.train.epochs = e;
+    }
+    let [tr, va, te] = r.tracks();
+    // The shipped kf is tuned on all validation tracks of the recipe (one filter for
+    // every platform, like the model); platform tables also show a filter tuned on their
+    // own kind of validation tracks.
+    let cars = timeline::only(&va, Platform::Car);
+    let tips = timeline::only(&va, Platform::TurnInPlace);
+    let (kf, kf_mae) = timeline::tuned_kf(&va, r.train.max_gap_s);
+    eprintln!(
+        "kf tuned on all validation tracks: {:?} (val MAE {kf_mae:.2}°)",
+        kf.meta().kind
+    );
+    let (kf_p, kf_p_mae) = timeline::tuned_kf(
+        if tips.is_empty() { &cars } else { &tips },
+        r.train.max_gap_s,
+    );
+    eprintln!(
+        "kf tuned on platform validation tracks: {:?} (val MAE {kf_p_mae:.2}°)",
+        kf_p.meta().kind
+    );
+    let kf = Arc::new(with_data(&kf, &r)?);
+    let kf_path = output.with_file_name("kf.safetensors");
+    std::fs::write(&kf_path, kf.to_safetensors())
+        .with_context(|| format!("writing {}", kf_path.display()))?;
+    let trained = timeline::train_logged(&r.name, &tr, &va, &kf, None, &r.train)?;
+    let model = Arc::new(with_data(&trained.model, &r)?);
+    let tables = timeline::tables(
+        &model,
+        &kf,
+        Some(&Arc::new(kf_p)),
+        &te,
+        "held-out simulated tracks",
+    );
+    for t in &tables {
+        println!("### {}\n\n{}", t.title, streval::to_markdown(t));
+    }
+    let all = tables.last().expect("an 'all' table");
+    let mut meta = model.meta().clone();
+    meta.training = serde_json::json!({
+        "config": r.train,
+        "best_epoch": trained.best_epoch,
+        "epochs_run": trained.epochs_run,
+        "best_val_mae_deg": trained.best_val_mae_deg,
+        "seconds": t0.elapsed().as_secs_f64(),
+    });
+    meta.metrics = serde_json::json!({
+        "test_epochs": all.rows.last().map(|r| r.count),
+        "mae_deg": all.overall(model.name()),
+        "kf_mae_deg": all.overall("kf"),
+        "atan2_mae_deg": all.overall(streval::ATAN2),
+    });
+    let out = Model::new(model.params().clone(), meta);
+    std::fs::write(output, out.to_safetensors())
+        .with_context(|| format!("writing {}", output.display()))?;
+    eprintln!(
+        "{}: best epoch {} of {}, {:.0} s -> {} and {}",
+        r.name,
+        trained.best_epoch,
+        trained.epochs_run,
+        t0.elapsed().as_secs_f64(),
+        output.display(),
+        kf_path.display()
+    );
+    Ok(())
+}
+
+/// `m` with the recipe as its `training_data`, so `ghnet eval` can regenerate the test
+/// tracks.
+fn with_data(m: &Model, r: &TemporalRecipe) -> Result<Model> {
+    let mut meta = m.meta().clone();
+    meta.training_data = serde_json::to_value(r)?;
+    Ok(Model::new(m.params().clone(), meta))
+}
+
+/// The shipped `kf`, the baseline of every streamed table.
+fn builtin_kf() -> Result<Arc<Model>> {
+    Ok(Arc::new(Model::builtin("kf").context(
+        "no built-in kf: run `ghnet train --recipe ghnet-temporal` first",
+    )?))
+}
+
+/// `ghnet train --data ...`.
+pub fn train_data(
+    paths: &[impl AsRef<Path>],
+    output: &Path,
+    init: Option<&str>,
+    range: Option<(f32, f32)>,
+    seed: Option<u64>,
+    epochs: Option<usize>,
+) -> Result<()> {
+    let (tr, va) = timeline::read_logs(paths, 0.2)?;
+    if let Some((lo, hi)) = range {
+        return train_restricted(&tr, &va, output, lo, hi, seed, epochs);
+    }
+    let init = init.map(Model::from_name_or_path).transpose()?;
+    let mut cfg = TemporalConfig::default();
+    let mut kf = builtin_kf()?;
+    if let Some(m) = &init {
+        if let ghnet_models::weights::ModelKind::Temporal {
+            max_gap_s,
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+        } = m.meta().kind
+        {
+            cfg.max_gap_s = max_gap_s;
+            cfg.window = m.params().arch().window;
+            // Fine-tuning keeps the Kalman step the network learned to correct.
+            kf = Arc::new(streval::kf_model(q_deg_per_sqrt_s, sigma_v_mps, max_gap_s));
+        }
+        cfg.lr /= 4.0;
+    }
+    cfg.seed = seed.unwrap_or(cfg.seed);
+    cfg.epochs = epochs.unwrap_or(cfg.epochs);
+    // Small logs: short runs, so that a few minutes of data still make mini-batches.
+    let n: usize = tr.iter().map(|t| t.len()).sum();
+    if n < 50_000 {
+        cfg.tile_len = 16;
+        cfg.tiles = 4;
+    }
+    let name = output
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("ghnet-custom")
+        .to_owned();
+    let trained = timeline::train_logged(&name, &tr, &va, &kf, init.as_ref(), &cfg)?;
+    let model = Arc::new(trained.model);
+    for t in timeline::tables(
+        &model,
+        &kf,
+        None,
+        &va,
+        "validation (last 20% of each track)",
+    ) {
+        println!("### {}\n\n{}", t.title, streval::to_markdown(&t));
+    }
+    std::fs::write(output, model.to_safetensors())
+        .with_context(|| format!("writing {}", output.display()))?;
+    eprintln!("wrote {}", output.display());
+    Ok(())
+}
+
+/// The paper's protocol on a user's logs: a per-epoch model restricted to `[lo, hi]`.
+fn train_restricted(
+    tr: &[ghnet_lab::logs::LogTrack],
+    va: &[ghnet_lab::logs::LogTrack],
+    output: &Path,
+    lo: f32,
+    hi: f32,
+    seed: Option<u64>,
+    epochs: Option<usize>,
+) -> Result<()> {
+    let data = |ts: &[ghnet_lab::logs::LogTrack]| {
+        let mut d = Dataset::default();
+        for t in ts {
+            for i in 0..t.len() {
+                d.push(t.v_north[i], t.v_east[i], t.truth_deg[i], t.speed_acc[i]);
+            }
+        }
+        d
+    };
+    let (dtr, dva) = (data(tr), data(va));
+    if dtr.len() < 2 || dva.is_empty() {
+        bail!("too little data for a restricted-range model");
+    }
+    let head = Head::Blend {
+        centre_deg: 0.5 * (lo + hi),
+        half_range_deg: 0.5 * (hi - lo),
+    };
+    let cfg = TrainConfig {
+        seed: seed.unwrap_or(1),
+        epochs: epochs.unwrap_or(100),
+        ..TrainConfig::default()
+    };
+    let arch = Arch::paper(head.outputs());
+    let t = train::train(&arch, &head, 5.0, &dtr, &dva, &cfg, |_| {});
+    let meta = ModelMeta {
+        format: FORMAT.into(),
+        name: output
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("custom")
+            .into(),
+        architecture: arch,
+        activation: "gelu_tanh".into(),
+        head,
+        input_scale_mps: 5.0,
+        heading_range_deg: [lo, hi],
+        sigma_scale: t.sigma_scale,
+        accuracy_sigma_scale: f32::NAN,
+        training_data: serde_json::json!({"logs": "user data", "heading_range_deg": [lo, hi]}),
+        training: serde_json::json!({"config": cfg, "best_epoch": t.best_epoch}),
+        metrics: serde_json::json!({"val_mae_deg": t.best_val_mae_deg}),
+        kind: ghnet_models::weights::ModelKind::Epoch,
+    };
+    ghnet_models::weights::write(output, &t.params, &meta)?;
+    eprintln!(
+        "restricted model: validation MAE {:.3}° -> {}",
+        t.best_val_mae_deg,
+        output.display()
+    );
+    Ok(())
+}
+
+/// `ghnet eval` for stateful models, or any model with `--data`.
+pub fn eval_stream(
+    model: &Arc<Model>,
+    data: Option<&Path>,
+    kf: Option<&str>,
+    plot: Option<&Path>,
+) -> Result<()> {
+    let kf = match kf {
+        Some(k) => Arc::new(Model::from_name_or_path(k)?),
+        None if timeline::is_kf(model) => model.clone(),
+        None => builtin_kf()?,
+    };
+    let (tracks, what) = match data {
+        Some(p) => {
+            let (t, s) = ghnet_lab::logs::read_csv(p, true)?;
+            if s.skipped > 0 {
+                eprintln!("{}: skipped {} of {} rows", p.display(), s.skipped, s.rows);
+            }
+            (t, p.display().to_string())
+        }
+        None => {
+            let r: TemporalRecipe = serde_json::from_value(model.meta().training_data.clone())
+                .context("model metadata does not name the drives it was trained on; use --data")?;
+            (
+                r.tracks()[2].clone(),
+                "held-out simulated tracks".to_owned(),
+            )
+        }
+    };
+    for t in timeline::tables(model, &kf, None, &tracks, &what) {
+        println!("### {}\n\n{}", t.title, streval::to_markdown(&t));
+    }
+    if let Some(p) = plot {
+        plot_timeline(model, &kf, &tracks[..1], &what, p)?;
+    }
+    Ok(())
+}
+
+/// Heading against time on `tracks`: truth, atan2, the Kalman filter, the model ±σ.
+fn plot_timeline(
+    model: &Arc<Model>,
+    kf: &Arc<Model>,
+    tracks: &[ghnet_lab::logs::LogTrack],
+    what: &str,
+    path: &Path,
+) -> Result<()> {
+    let t: Vec<f64> = tracks.iter().flat_map(|t| t.t_s.iter().copied()).collect();
+    let truth: Vec<f32> = tracks
+        .iter()
+        .flat_map(|t| t.truth_deg.iter().copied())
+        .collect();
+    let a = streval::run_atan2(tracks);
+    let k = streval::run_model(kf, tracks, "kf");
+    let m = streval::run_model(model, tracks, model.name());
+    let series = [
+        Series {
+            name: "truth",
+            heading_deg: &truth,
+            std_deg: None,
+        },
+        Series {
+            name: "atan2",
+            heading_deg: &a.heading_deg,
+            std_deg: None,
+        },
+        Series {
+            name: "kf",
+            heading_deg: &k.heading_deg,
+            std_deg: None,
+        },
+        Series {
+            name: model.name(),
+            heading_deg: &m.heading_deg,
+            std_deg: m.std_deg.as_deref(),
+        },
+    ];
+    let title = format!("{what}: heading against time ({} ±1σ)", model.name());
+    plot_heading_timeline(path, &title, &t, &series)?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
+}

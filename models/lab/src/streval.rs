@@ -1,0 +1,325 @@
+//! Streamed evaluation on tracks: every estimator runs over each track in order, as
+//! ghnetd would run it, and errors are tabulated per speed band with stops as their own
+//! band. The baselines are in every table: atan2, the Kalman filter (tuned on
+//! validation data, never on the data in the table), and the receiver's own frozen
+//! course where the simulator recorded it.
+
+use std::sync::Arc;
+
+use serde::Serialize;
+
+use ghnet_models::head::Head;
+use ghnet_models::params::{Arch, ParamSet};
+use ghnet_models::stream::{Epoch, StreamPredictor};
+use ghnet_models::weights::{ModelKind, ModelMeta, FORMAT};
+use ghnet_models::{Model, Status};
+
+use crate::eval::wrap_deg;
+use crate::logs::LogTrack;
+
+/// Name of the atan2 baseline in tables.
+pub const ATAN2: &str = "atan2";
+/// Name of the receiver's frozen course in tables.
+pub const RECEIVER: &str = "receiver course";
+
+/// Speed bands, m/s: `[lo, hi)`; the first is "stopped".
+pub const BANDS: [(f32, f32); 7] = [
+    (0.0, 0.05),
+    (0.05, 0.5),
+    (0.5, 1.0),
+    (1.0, 2.0),
+    (2.0, 5.0),
+    (5.0, 10.0),
+    (10.0, f32::INFINITY),
+];
+
+/// Measured speed below which a log without true speed counts as stopped: receiver noise
+/// alone reads 0.05–0.2 m/s.
+pub const STOPPED_MEASURED: f32 = 0.2;
+
+/// A model-free Kalman filter model with these parameters (what `kf` ships as).
+pub fn kf_model(q_deg_per_sqrt_s: f32, sigma_v_mps: f32, max_gap_s: f32) -> Model {
+    let arch = Arch {
+        input: 0,
+        conv: vec![],
+        fc: vec![],
+        output: 0,
+        window: 1,
+    };
+    let meta = ModelMeta {
+        format: FORMAT.into(),
+        name: "kf".into(),
+        architecture: arch.clone(),
+        activation: "gelu_tanh".into(),
+        head: Head::Residual {
+            range_deg: [0.0, 360.0],
+        },
+        input_scale_mps: 1.0,
+        heading_range_deg: [0.0, 360.0],
+        sigma_scale: 1.0,
+        accuracy_sigma_scale: f32::NAN,
+        training_data: serde_json::Value::Null,
+        training: serde_json::Value::Null,
+        metrics: serde_json::Value::Null,
+        kind: ModelKind::Kf {
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+            max_gap_s,
+        },
+    };
+    Model::new(ParamSet::zeros(&arch), meta)
+}
+
+/// One estimator's answers over a set of tracks, concatenated.
+#[derive(Debug, Clone, Serialize)]
+pub struct Answers {
+    /// Name in tables.
+    pub name: String,
+    /// Heading, degrees.
+    pub heading_deg: Vec<f32>,
+    /// 1σ, degrees (None for estimators without one).
+    pub std_deg: Option<Vec<f32>>,
+    /// Status per epoch (models only).
+    #[serde(skip)]
+    pub status: Vec<Status>,
+}
+
+/// Stream `model` over every track (a fresh history per track).
+pub fn run_model(model: &Arc<Model>, tracks: &[LogTrack], name: &str) -> Answers {
+    let mut sp = StreamPredictor::new(model.clone());
+    let mut a = Answers {
+        name: name.into(),
+        heading_deg: Vec::new(),
+        std_deg: Some(Vec::new()),
+        status: Vec::new(),
+    };
+    for t in tracks {
+        let mut h = sp.history();
+        for i in 0..t.len() {
+            let p = sp.predict(
+                &mut h,
+                &Epoch {
+                    t_s: t.t_s[i],
+                    v_north: t.v_north[i],
+                    v_east: t.v_east[i],
+                    speed_acc: t.speed_acc[i],
+                },
+            );
+            a.heading_deg.push(p.heading_deg);
+            a.std_deg.as_mut().expect("σ").push(p.std_deg);
+            a.status.push(p.status);
+        }
+    }
+    a
+}
+
+/// atan2 of the measured velocity.
+pub fn run_atan2(tracks: &[LogTrack]) -> Answers {
+    Answers {
+        name: ATAN2.into(),
+        heading_deg: tracks
+            .iter()
+            .flat_map(|t| {
+                (0..t.len()).map(|i| crate::eval::atan2_heading_deg(t.v_north[i], t.v_east[i]))
+            })
+            .collect(),
+        std_deg: None,
+        status: Vec::new(),
+    }
+}
+
+/// The receiver's frozen course, when every track has it.
+pub fn run_receiver(tracks: &[LogTrack]) -> Option<Answers> {
+    let h: Vec<f32> = tracks
+        .iter()
+        .flat_map(|t| t.receiver_course_deg.iter().copied())
+        .collect();
+    h.iter().all(|v| v.is_finite()).then(|| Answers {
+        name: RECEIVER.into(),
+        heading_deg: h,
+        std_deg: None,
+        status: Vec::new(),
+    })
+}
+
+/// Mean absolute wrapped error of `a` over `tracks`, degrees.
+pub fn mae(a: &Answers, tracks: &[LogTrack]) -> f64 {
+    let truth = tracks.iter().flat_map(|t| t.truth_deg.iter());
+    let (s, n) = a
+        .heading_deg
+        .iter()
+        .zip(truth)
+        .fold((0.0f64, 0usize), |(s, n), (h, t)| {
+            (s + wrap_deg(h - t).abs() as f64, n + 1)
+        });
+    s / n.max(1) as f64
+}
+
+/// The Kalman filter tuned on `tracks` by grid search over `q` and `σ_v` (streamed MAE):
+/// the baseline's parameters, chosen on validation data only.
+pub fn tune_kf(tracks: &[LogTrack], max_gap_s: f32) -> (f32, f32, f64) {
+    let mut best = (0.0, 0.0, f64::INFINITY);
+    for q in [
+        0.5f32, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0,
+    ] {
+        for sv in [0.03f32, 0.05, 0.1, 0.2, 0.3, 0.5, 0.8, 1.2, 2.0, 3.0, 4.0] {
+            let m = Arc::new(kf_model(q, sv, max_gap_s));
+            let e = mae(&run_model(&m, tracks, "kf"), tracks);
+            if e < best.2 {
+                best = (q, sv, e);
+            }
+        }
+    }
+    best
+}
+
+/// One estimator in one band.
+#[derive(Debug, Clone, Serialize)]
+pub struct Cell {
+    /// Mean absolute wrapped error, degrees.
+    pub mae_deg: f64,
+    /// Share of errors within 1σ (estimators with σ).
+    pub within_1sigma: Option<f64>,
+    /// Share within 2σ.
+    pub within_2sigma: Option<f64>,
+}
+
+/// One band's row.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    /// Band label.
+    pub label: String,
+    /// Epochs in the band.
+    pub count: usize,
+    /// One cell per estimator, in the table's order.
+    pub cells: Vec<Cell>,
+}
+
+/// A table: rows per band plus "all".
+#[derive(Debug, Clone, Serialize)]
+pub struct Table {
+    /// What the table is about.
+    pub title: String,
+    /// Estimator names.
+    pub names: Vec<String>,
+    /// Bands, then "all".
+    pub rows: Vec<Row>,
+    /// Whether bands use true speed (simulated) or measured speed (logs without it).
+    pub true_speed: bool,
+}
+
+impl Table {
+    /// The "all" row's MAE of estimator `name`.
+    pub fn overall(&self, name: &str) -> Option<f64> {
+        let k = self.names.iter().position(|n| n == name)?;
+        Some(self.rows.last()?.cells[k].mae_deg)
+    }
+}
+
+fn cell(a: &Answers, truth: &[f32], idx: &[usize]) -> Cell {
+    let n = idx.len().max(1) as f64;
+    let e = |i: usize| wrap_deg(a.heading_deg[i] - truth[i]).abs();
+    let within = |k: f32| {
+        a.std_deg
+            .as_ref()
+            .map(|s| idx.iter().filter(|&&i| e(i) <= k * s[i]).count() as f64 / n)
+    };
+    Cell {
+        mae_deg: idx.iter().map(|&i| e(i) as f64).sum::<f64>() / n,
+        within_1sigma: within(1.0),
+        within_2sigma: within(2.0),
+    }
+}
+
+/// Tabulate `answers` on `tracks` per band.
+pub fn table(title: &str, tracks: &[LogTrack], answers: &[Answers]) -> Table {
+    let truth: Vec<f32> = tracks
+        .iter()
+        .flat_map(|t| t.truth_deg.iter().copied())
+        .collect();
+    let true_speed = tracks
+        .iter()
+        .all(|t| t.true_speed.iter().all(|s| s.is_finite()));
+    let speed: Vec<f32> = tracks
+        .iter()
+        .flat_map(|t| (0..t.len()).map(move |i| t.bin_speed(i)))
+        .collect();
+    let stop = if true_speed {
+        BANDS[0].1
+    } else {
+        STOPPED_MEASURED
+    };
+    let mut rows = Vec::new();
+    for (b, &(lo, hi)) in BANDS.iter().enumerate() {
+        let (lo, hi) = match b {
+            0 => (lo, stop),
+            1 => (stop, hi),
+            _ => (lo, hi),
+        };
+        let idx: Vec<usize> = (0..speed.len())
+            .filter(|&i| speed[i] >= lo && speed[i] < hi)
+            .collect();
+        let label = match b {
+            0 => format!("stopped (<{stop})"),
+            _ if hi.is_infinite() => format!("≥{lo}"),
+            _ => format!("{lo}–{hi}"),
+        };
+        rows.push(Row {
+            label,
+            count: idx.len(),
+            cells: answers.iter().map(|a| cell(a, &truth, &idx)).collect(),
+        });
+    }
+    let all: Vec<usize> = (0..truth.len()).collect();
+    rows.push(Row {
+        label: "**all**".into(),
+        count: all.len(),
+        cells: answers.iter().map(|a| cell(a, &truth, &all)).collect(),
+    });
+    Table {
+        title: title.into(),
+        names: answers.iter().map(|a| a.name.clone()).collect(),
+        rows,
+        true_speed,
+    }
+}
+
+/// The table as Markdown: MAE per estimator, the last estimator against atan2 and
+/// against the second-to-last (the Kalman filter, by convention), and its σ calibration.
+pub fn to_markdown(t: &Table) -> String {
+    let last = t.names.len() - 1;
+    let kf = t.names.iter().position(|n| n.starts_with("kf"));
+    let mut s = format!(
+        "| {} speed [m/s] | N |",
+        if t.true_speed { "True" } else { "Measured" }
+    );
+    for n in &t.names {
+        s += &format!(" MAE {n} |");
+    }
+    s += &format!(" {} vs atan2 [%] |", t.names[last]);
+    if kf.is_some() {
+        s += &format!(" {} vs kf [%] |", t.names[last]);
+    }
+    s += " ≤1σ [%] | ≤2σ [%] |\n|---|---:|";
+    s += &"---:|".repeat(t.names.len() + 3 + kf.is_some() as usize);
+    s += "\n";
+    for r in &t.rows {
+        s += &format!("| {} | {} |", r.label, r.count);
+        for c in &r.cells {
+            s += &format!(" {:.2} |", c.mae_deg);
+        }
+        let m = r.cells[last].mae_deg;
+        let gain = |b: f64| if b > 0.0 { 100.0 * (b - m) / b } else { 0.0 };
+        s += &format!(" {:.1} |", gain(r.cells[0].mae_deg));
+        if let Some(k) = kf {
+            s += &format!(" {:.1} |", gain(r.cells[k].mae_deg));
+        }
+        let pct = |v: Option<f64>| v.map_or("".into(), |v| format!("{:.1}", 100.0 * v));
+        s += &format!(
+            " {} | {} |\n",
+            pct(r.cells[last].within_1sigma),
+            pct(r.cells[last].within_2sigma)
+        );
+    }
+    s
+}

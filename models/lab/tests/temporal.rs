@@ -1,0 +1,116 @@
+//! The temporal model's training and its command-line paths, on small data: training is
+//! deterministic with a seed, and `ghnet train --data` / `eval --data` / `infer` work on a
+//! small log file with a `track` column.
+
+use std::process::Command;
+use std::sync::Arc;
+
+use ghnet_lab::drive::{self, DriveParams};
+use ghnet_lab::logs::{self, LogTrack};
+use ghnet_lab::streval::kf_model;
+use ghnet_lab::temporal::{self, TemporalConfig};
+
+fn small_drive(seed: u64) -> Vec<drive::Track> {
+    let p = DriveParams {
+        tracks: 4,
+        track_min_s: 150.0,
+        track_max_s: 200.0,
+        rates_hz: vec![2, 5],
+        ..DriveParams::default()
+    };
+    drive::simulate(&p, seed)
+}
+
+fn tiny_config(seed: u64) -> TemporalConfig {
+    TemporalConfig {
+        epochs: 2,
+        tiles: 4,
+        tile_len: 16,
+        kf_epochs: 1,
+        seed,
+        ..TemporalConfig::default()
+    }
+}
+
+#[test]
+fn temporal_training_is_deterministic_with_a_seed() {
+    let tracks: Vec<LogTrack> = small_drive(1).iter().map(LogTrack::from).collect();
+    let (tr, va) = logs::time_split(&tracks, 0.25);
+    let kf = Arc::new(kf_model(20.0, 1.0, 10.0));
+    let run = |seed| {
+        temporal::train(
+            "t",
+            &tr,
+            &va,
+            &kf,
+            None,
+            &tiny_config(seed),
+            |_, _, _, _| {},
+        )
+        .expect("trains")
+        .model
+    };
+    let (a, b, c) = (run(3), run(3), run(4));
+    assert_eq!(
+        a.params().data(),
+        b.params().data(),
+        "same seed, same weights"
+    );
+    assert_eq!(a.meta().sigma_scale, b.meta().sigma_scale);
+    assert_ne!(
+        a.params().data(),
+        c.params().data(),
+        "another seed, other weights"
+    );
+}
+
+fn ghnet(args: &[&str]) -> std::process::Output {
+    let out = Command::new(env!("CARGO_BIN_EXE_ghnet"))
+        .args(args)
+        .output()
+        .expect("runs ghnet");
+    assert!(
+        out.status.success(),
+        "ghnet {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+#[test]
+fn train_eval_and_infer_on_a_small_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("log.csv");
+    logs::write_tracks_csv(&csv, &small_drive(2)).unwrap();
+    let model = dir.path().join("mine.safetensors");
+    let (c, m) = (csv.to_str().unwrap(), model.to_str().unwrap());
+    ghnet(&[
+        "train", "--data", c, "--output", m, "--epochs", "2", "--seed", "5",
+    ]);
+    let loaded = ghnet_models::Model::load(&model).expect("the written model loads");
+    assert!(loaded.is_stateful());
+    assert_eq!(loaded.name(), "mine");
+    let eval = ghnet(&["eval", "--model", m, "--data", c]);
+    let text = String::from_utf8_lossy(&eval.stdout);
+    assert!(
+        text.contains("stopped") && text.contains("MAE kf"),
+        "{text}"
+    );
+    let out = dir.path().join("out.csv");
+    ghnet(&[
+        "infer",
+        "--model",
+        m,
+        "--input",
+        c,
+        "--output",
+        out.to_str().unwrap(),
+    ]);
+    let answered = std::fs::read_to_string(&out).unwrap();
+    assert!(answered
+        .lines()
+        .next()
+        .unwrap()
+        .ends_with("heading_deg,heading_std_deg,status"));
+    assert!(answered.contains(",held\n"), "a stopped car is held");
+}
