@@ -120,6 +120,36 @@ fn median(mut v: Vec<f64>) -> f64 {
     quantile(&v, 0.5)
 }
 
+/// The predictor (the model's own network, on the widest kernel): single-sample
+/// latencies (µs, sorted) and the median batch rate (samples/s).
+fn predictor_speed(model: &Arc<Model>, vn: &[f32], ve: &[f32], seconds: f64) -> (Vec<f64>, f64) {
+    let mut p = Predictor::new(model.clone());
+    let mut i = 0;
+    let single = latencies(seconds, || {
+        i = (i + 1) & 4095;
+        black_box(p.predict(black_box(vn[i]), black_box(ve[i])));
+    });
+    let mut preds = vec![Prediction::INVALID; BATCH];
+    let batch = median(rates(seconds, BATCH as f64, || {
+        p.predict_batch(black_box(&vn[..BATCH]), black_box(&ve[..BATCH]), &mut preds);
+        black_box(&preds);
+    }));
+    (single, batch)
+}
+
+/// GELUs per second on `kernel`, over one batch's worth of activations.
+fn gelu_rate(net: &Network, kernel: Kernel, seconds: f64) -> f64 {
+    let n_gelu = net.gelus_per_sample() * BATCH;
+    let src: Vec<f32> = (0..n_gelu)
+        .map(|i| (i % 1000) as f32 * 0.01 - 5.0)
+        .collect();
+    let mut buf = src.clone();
+    median(rates(seconds / 2.0, n_gelu as f64, || {
+        buf.copy_from_slice(&src);
+        gelu_inplace_with(kernel, black_box(&mut buf));
+    }))
+}
+
 /// Measure `model` on `kernel`, `seconds` per measurement.
 pub fn run(model: &Arc<Model>, kernel: Kernel, seconds: f64) -> Report {
     let net: Network = model
@@ -166,27 +196,8 @@ pub fn run(model: &Arc<Model>, kernel: Kernel, seconds: f64) -> Report {
         black_box(&out);
     });
 
-    // The predictor runs the model's own network, on the widest kernel.
-    let mut p = Predictor::new(model.clone());
-    let predictor_single = latencies(seconds, || {
-        i = (i + 1) & 4095;
-        black_box(p.predict(black_box(vn[i]), black_box(ve[i])));
-    });
-    let mut preds = vec![Prediction::INVALID; BATCH];
-    let predictor_batch = median(rates(seconds, BATCH as f64, || {
-        p.predict_batch(black_box(&vn[..BATCH]), black_box(&ve[..BATCH]), &mut preds);
-        black_box(&preds);
-    }));
-
-    let n_gelu = net.gelus_per_sample() * BATCH;
-    let src: Vec<f32> = (0..n_gelu)
-        .map(|i| (i % 1000) as f32 * 0.01 - 5.0)
-        .collect();
-    let mut buf = src.clone();
-    let gelu = median(rates(seconds / 2.0, n_gelu as f64, || {
-        buf.copy_from_slice(&src);
-        gelu_inplace_with(kernel, black_box(&mut buf));
-    }));
+    let (predictor_single, predictor_batch) = predictor_speed(model, &vn, &ve, seconds);
+    let gelu = gelu_rate(&net, kernel, seconds);
 
     peak.extend(rates(seconds / 2.0, flops, || {
         black_box(peak_fma_loop(widest, black_box(iters)));

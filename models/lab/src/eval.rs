@@ -415,59 +415,8 @@ pub fn evaluate(
     estimates: &[Estimate],
     cfg: &EvalConfig,
 ) -> Result<Report, EvalError> {
+    let names = validate(truth, estimates, cfg)?;
     let n = truth.heading_deg.len();
-    if truth.speed.len() != n {
-        return Err(EvalError::LengthMismatch {
-            name: "truth speed".into(),
-            expected: n,
-            got: truth.speed.len(),
-        });
-    }
-    let positive = |x: f64| x > 0.0 && x.is_finite();
-    if !(positive(cfg.bin_width) && positive(cfg.max_speed)) {
-        return Err(EvalError::Binning {
-            bin_width: cfg.bin_width,
-            max_speed: cfg.max_speed,
-        });
-    }
-    let invalid = |name: &str, index: usize, value: f32| EvalError::Invalid {
-        name: name.to_owned(),
-        index,
-        value,
-    };
-    for (i, (&h, &s)) in truth.heading_deg.iter().zip(&truth.speed).enumerate() {
-        if !h.is_finite() {
-            return Err(invalid("truth heading", i, h));
-        }
-        if !s.is_finite() {
-            return Err(invalid("truth speed", i, s));
-        }
-    }
-    let mut names: Vec<String> = Vec::with_capacity(estimates.len());
-    for e in estimates {
-        if names.contains(&e.name) {
-            return Err(EvalError::DuplicateName(e.name.clone()));
-        }
-        names.push(e.name.clone());
-        let lens = std::iter::once(e.heading_deg.len()).chain(e.std_deg.as_ref().map(Vec::len));
-        for got in lens {
-            if got != n {
-                return Err(EvalError::LengthMismatch {
-                    name: e.name.clone(),
-                    expected: n,
-                    got,
-                });
-            }
-        }
-        if let Some(i) = e.heading_deg.iter().position(|h| !h.is_finite()) {
-            return Err(invalid(&e.name, i, e.heading_deg[i]));
-        }
-        if let Some(sd) = &e.std_deg {
-            if let Some(i) = sd.iter().position(|s| !(s.is_finite() && *s >= 0.0)) {
-                return Err(invalid(&e.name, i, sd[i]));
-            }
-        }
-    }
 
     // A relative tolerance keeps grid speeds stored as f32 (0.7 → 0.69999999) in their
     // own bin; it moves bin edges by 1e-4 bin widths, far below any receiver's noise.
@@ -540,6 +489,69 @@ pub fn evaluate(
         summary: summary_rows,
         overall: overall_row,
     })
+}
+
+/// Checks the inputs of [`evaluate`]: lengths, binning, finite values, unique names.
+/// Returns the estimators' names in order.
+fn validate(
+    truth: &Truth,
+    estimates: &[Estimate],
+    cfg: &EvalConfig,
+) -> Result<Vec<String>, EvalError> {
+    let n = truth.heading_deg.len();
+    if truth.speed.len() != n {
+        return Err(EvalError::LengthMismatch {
+            name: "truth speed".into(),
+            expected: n,
+            got: truth.speed.len(),
+        });
+    }
+    let positive = |x: f64| x > 0.0 && x.is_finite();
+    if !(positive(cfg.bin_width) && positive(cfg.max_speed)) {
+        return Err(EvalError::Binning {
+            bin_width: cfg.bin_width,
+            max_speed: cfg.max_speed,
+        });
+    }
+    let invalid = |name: &str, index: usize, value: f32| EvalError::Invalid {
+        name: name.to_owned(),
+        index,
+        value,
+    };
+    for (i, (&h, &s)) in truth.heading_deg.iter().zip(&truth.speed).enumerate() {
+        if !h.is_finite() {
+            return Err(invalid("truth heading", i, h));
+        }
+        if !s.is_finite() {
+            return Err(invalid("truth speed", i, s));
+        }
+    }
+    let mut names: Vec<String> = Vec::with_capacity(estimates.len());
+    for e in estimates {
+        if names.contains(&e.name) {
+            return Err(EvalError::DuplicateName(e.name.clone()));
+        }
+        names.push(e.name.clone());
+        let lens = std::iter::once(e.heading_deg.len()).chain(e.std_deg.as_ref().map(Vec::len));
+        for got in lens {
+            if got != n {
+                return Err(EvalError::LengthMismatch {
+                    name: e.name.clone(),
+                    expected: n,
+                    got,
+                });
+            }
+        }
+        if let Some(i) = e.heading_deg.iter().position(|h| !h.is_finite()) {
+            return Err(invalid(&e.name, i, e.heading_deg[i]));
+        }
+        if let Some(sd) = &e.std_deg {
+            if let Some(i) = sd.iter().position(|s| !(s.is_finite() && *s >= 0.0)) {
+                return Err(invalid(&e.name, i, sd[i]));
+            }
+        }
+    }
+    Ok(names)
 }
 
 fn fmt_opt(x: Option<f64>, digits: usize) -> String {

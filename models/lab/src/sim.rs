@@ -579,119 +579,173 @@ pub fn simulate_realistic(p: &RealisticParams, seed: u64) -> Vec<Sample> {
     let mut out: Vec<Sample> = Vec::with_capacity(p.samples);
     // Start index in `out` of each track, for the split assignment at the end.
     let mut track_starts: Vec<usize> = Vec::new();
-    let phi_of = |rate_epochs: f64| (-1.0 / rate_epochs.max(1e-9)).exp();
-    let phi = phi_of(p.corr_epochs);
-    let innov = (1.0 - phi * phi).sqrt();
-    let (c_share, w_share) = (
-        p.corr_fraction.clamp(0.0, 1.0).sqrt(),
-        (1.0 - p.corr_fraction.clamp(0.0, 1.0)).sqrt(),
-    );
-
+    let noise = NoiseModel::new(p);
     while out.len() < p.samples {
         let track = track_starts.len() as u32;
         track_starts.push(out.len());
-        let rate = rng.random_range(p.rate_min_hz.min(p.rate_max_hz)..=p.rate_max_hz) as f64;
-        let dt = 1.0 / rate;
-        let n_track = ((uniform(&mut rng, p.track_min_s, p.track_max_s) * rate).round() as usize)
-            .clamp(1, p.samples - out.len());
-        let sigma_track = log_uniform(&mut rng, p.sigma_min, p.sigma_max);
-        let freezes = rng.random::<f64>() < p.p_freeze_track;
-        let sacc_known = rng.random::<f64>() >= p.p_sacc_unknown;
+        simulate_track(p, &noise, track, &mut rng, &mut out);
+    }
+    assign_splits(p, &track_starts, &mut rng, &mut out);
+    out
+}
 
-        let mut heading = rng.random::<f64>() * 360.0;
-        let mut speed = 0.0_f64;
-        // Unit-variance AR(1) states for north, east, down.
-        let mut ar = [0.0_f64; 3];
-        for a in &mut ar {
-            *a = rng.sample(StandardNormal);
-        }
-        let mut frozen_course: Option<f64> = None;
-        let mut seg = next_segment(p, &mut rng, rate, speed, sigma_track);
+/// The velocity noise of [`simulate_realistic`]: per axis a unit-variance AR(1) part
+/// (`corr_fraction` of the variance, `corr_epochs` correlation) plus a white part.
+struct NoiseModel {
+    phi: f64,
+    innov: f64,
+    c_share: f64,
+    w_share: f64,
+    down_factor: f64,
+}
 
-        for k in 0..n_track {
-            if seg.epochs == 0 {
-                seg = next_segment(p, &mut rng, rate, speed, sigma_track);
-            }
-            seg.epochs -= 1;
-            if let Some(n) = seg.yaw_redraw_in.as_mut() {
-                if *n == 0 {
-                    let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
-                    seg.yaw_rate = sign * uniform(&mut rng, 0.0, p.yaw_rate_max);
-                    *n = ((uniform(&mut rng, 1.0, 3.0) * rate).round() as usize).max(1);
-                } else {
-                    *n -= 1;
-                }
-            }
-            // Kinematics: speed moves towards the target at most acc_max; the vehicle
-            // only turns while it moves.
-            let dv = (seg.target_speed - speed).clamp(-p.acc_max * dt, p.acc_max * dt);
-            speed = (speed + dv).max(0.0);
-            if speed > 0.0 {
-                heading = (heading + seg.yaw_rate * dt).rem_euclid(360.0);
-            }
-
-            // Noise: correlated part + white part, stationary σ = seg.sigma per axis.
-            let mut noise = [0.0_f64; 3];
-            for (axis, (a, nz)) in ar.iter_mut().zip(noise.iter_mut()).enumerate() {
-                let e: f64 = rng.sample(StandardNormal);
-                *a = phi * *a + innov * e;
-                let w: f64 = rng.sample(StandardNormal);
-                let scale = if axis == 2 {
-                    seg.sigma * p.down_sigma_factor
-                } else {
-                    seg.sigma
-                };
-                *nz = scale * (c_share * *a + w_share * w);
-            }
-            let (sin_h, cos_h) = heading.to_radians().sin_cos();
-            let mut vn = speed * cos_h + noise[0];
-            let mut ve = speed * sin_h + noise[1];
-            let vd = noise[2];
-            if rng.random::<f64>() < p.p_glitch {
-                let mag = uniform(&mut rng, p.glitch_min, p.glitch_max);
-                let dir = rng.random::<f64>() * 2.0 * PI;
-                vn += mag * dir.cos();
-                ve += mag * dir.sin();
-            }
-            if freezes {
-                let m = vn.hypot(ve);
-                if m < p.freeze_speed {
-                    if let Some(c) = frozen_course {
-                        let (s, c) = c.to_radians().sin_cos();
-                        vn = m * c;
-                        ve = m * s;
-                    }
-                } else {
-                    frozen_course = Some(heading_deg(vn, ve));
-                }
-            }
-            let speed_acc = if sacc_known {
-                quantize(seg.sigma * seg.sacc_factor, p.quant) as f32
-            } else {
-                f32::NAN
-            };
-            out.push(Sample {
-                t_s: k as f64 * dt,
-                track,
-                v_north: quantize(vn, p.quant) as f32,
-                v_east: quantize(ve, p.quant) as f32,
-                v_down: quantize(vd, p.quant) as f32,
-                speed_acc,
-                true_heading_deg: heading_f32(heading),
-                true_speed: speed as f32,
-                sigma_v: seg.sigma as f32,
-                split: Split::Train,
-            });
+impl NoiseModel {
+    fn new(p: &RealisticParams) -> Self {
+        let phi = (-1.0 / p.corr_epochs.max(1e-9)).exp();
+        let corr = p.corr_fraction.clamp(0.0, 1.0);
+        NoiseModel {
+            phi,
+            innov: (1.0 - phi * phi).sqrt(),
+            c_share: corr.sqrt(),
+            w_share: (1.0 - corr).sqrt(),
+            down_factor: p.down_sigma_factor,
         }
     }
 
-    // Whole tracks to splits, in a seeded random order.
+    /// One epoch's noise (north, east, down) with stationary σ `sigma` per horizontal
+    /// axis; advances the AR(1) states `ar`.
+    fn draw(&self, ar: &mut [f64; 3], sigma: f64, rng: &mut ChaCha8Rng) -> [f64; 3] {
+        let mut noise = [0.0_f64; 3];
+        for (axis, (a, nz)) in ar.iter_mut().zip(noise.iter_mut()).enumerate() {
+            let e: f64 = rng.sample(StandardNormal);
+            *a = self.phi * *a + self.innov * e;
+            let w: f64 = rng.sample(StandardNormal);
+            let scale = if axis == 2 {
+                sigma * self.down_factor
+            } else {
+                sigma
+            };
+            *nz = scale * (self.c_share * *a + self.w_share * w);
+        }
+        noise
+    }
+}
+
+/// Appends one track (one vehicle with its own receiver) to `out`.
+fn simulate_track(
+    p: &RealisticParams,
+    noise: &NoiseModel,
+    track: u32,
+    rng: &mut ChaCha8Rng,
+    out: &mut Vec<Sample>,
+) {
+    let rate = rng.random_range(p.rate_min_hz.min(p.rate_max_hz)..=p.rate_max_hz) as f64;
+    let dt = 1.0 / rate;
+    let n_track = ((uniform(rng, p.track_min_s, p.track_max_s) * rate).round() as usize)
+        .clamp(1, p.samples - out.len());
+    let sigma_track = log_uniform(rng, p.sigma_min, p.sigma_max);
+    let freezes = rng.random::<f64>() < p.p_freeze_track;
+    let sacc_known = rng.random::<f64>() >= p.p_sacc_unknown;
+
+    let mut heading = rng.random::<f64>() * 360.0;
+    let mut speed = 0.0_f64;
+    // Unit-variance AR(1) states for north, east, down.
+    let mut ar = [0.0_f64; 3];
+    for a in &mut ar {
+        *a = rng.sample(StandardNormal);
+    }
+    let mut frozen_course: Option<f64> = None;
+    let mut seg = next_segment(p, rng, rate, speed, sigma_track);
+
+    for k in 0..n_track {
+        if seg.epochs == 0 {
+            seg = next_segment(p, rng, rate, speed, sigma_track);
+        }
+        seg.epochs -= 1;
+        redraw_yaw_rate(p, &mut seg, rate, rng);
+        // Kinematics: speed moves towards the target at most acc_max; the vehicle
+        // only turns while it moves.
+        let dv = (seg.target_speed - speed).clamp(-p.acc_max * dt, p.acc_max * dt);
+        speed = (speed + dv).max(0.0);
+        if speed > 0.0 {
+            heading = (heading + seg.yaw_rate * dt).rem_euclid(360.0);
+        }
+        let nz = noise.draw(&mut ar, seg.sigma, rng);
+        let (sin_h, cos_h) = heading.to_radians().sin_cos();
+        let mut vn = speed * cos_h + nz[0];
+        let mut ve = speed * sin_h + nz[1];
+        if rng.random::<f64>() < p.p_glitch {
+            let mag = uniform(rng, p.glitch_min, p.glitch_max);
+            let dir = rng.random::<f64>() * 2.0 * PI;
+            vn += mag * dir.cos();
+            ve += mag * dir.sin();
+        }
+        if freezes {
+            freeze_course(&mut frozen_course, p.freeze_speed, &mut vn, &mut ve);
+        }
+        let speed_acc = if sacc_known {
+            quantize(seg.sigma * seg.sacc_factor, p.quant) as f32
+        } else {
+            f32::NAN
+        };
+        out.push(Sample {
+            t_s: k as f64 * dt,
+            track,
+            v_north: quantize(vn, p.quant) as f32,
+            v_east: quantize(ve, p.quant) as f32,
+            v_down: quantize(nz[2], p.quant) as f32,
+            speed_acc,
+            true_heading_deg: heading_f32(heading),
+            true_speed: speed as f32,
+            sigma_v: seg.sigma as f32,
+            split: Split::Train,
+        });
+    }
+}
+
+/// A segment with a varying yaw rate draws a new one every 1–3 s.
+fn redraw_yaw_rate(p: &RealisticParams, seg: &mut Segment, rate: f64, rng: &mut ChaCha8Rng) {
+    if let Some(n) = seg.yaw_redraw_in.as_mut() {
+        if *n == 0 {
+            let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
+            seg.yaw_rate = sign * uniform(rng, 0.0, p.yaw_rate_max);
+            *n = ((uniform(rng, 1.0, 3.0) * rate).round() as usize).max(1);
+        } else {
+            *n -= 1;
+        }
+    }
+}
+
+/// A freezing receiver: under `freeze_speed` the velocity keeps the last valid course
+/// direction (`frozen`) with its measured magnitude; above it, the course is stored.
+fn freeze_course(frozen: &mut Option<f64>, freeze_speed: f64, vn: &mut f64, ve: &mut f64) {
+    let m = vn.hypot(*ve);
+    if m < freeze_speed {
+        if let Some(c) = *frozen {
+            let (s, c) = c.to_radians().sin_cos();
+            *vn = m * c;
+            *ve = m * s;
+        }
+    } else {
+        *frozen = Some(heading_deg(*vn, *ve));
+    }
+}
+
+/// Whole tracks to splits, in a seeded random order (held-out data never shares a
+/// trajectory with training data).
+fn assign_splits(
+    p: &RealisticParams,
+    track_starts: &[usize],
+    rng: &mut ChaCha8Rng,
+    out: &mut [Sample],
+) {
     let n_tracks = track_starts.len();
     let mut order: Vec<usize> = (0..n_tracks).collect();
-    order.shuffle(&mut rng);
+    order.shuffle(rng);
     let n_test = (p.test_fraction.clamp(0.0, 1.0) * n_tracks as f64).round() as usize;
     let n_val = ((p.val_fraction.clamp(0.0, 1.0) * n_tracks as f64).round() as usize)
         .min(n_tracks - n_test);
+    let total = out.len();
     for (rank, &t) in order.iter().enumerate() {
         let split = if rank < n_test {
             Split::Test
@@ -700,12 +754,11 @@ pub fn simulate_realistic(p: &RealisticParams, seed: u64) -> Vec<Sample> {
         } else {
             continue;
         };
-        let end = track_starts.get(t + 1).copied().unwrap_or(out.len());
+        let end = track_starts.get(t + 1).copied().unwrap_or(total);
         for s in &mut out[track_starts[t]..end] {
             s.split = split;
         }
     }
-    out
 }
 
 #[cfg(test)]

@@ -768,70 +768,30 @@ pub fn train(
         "empty training or validation set"
     );
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let mut params = ParamSet::init(arch, |b| rng.random_range(-b..b));
-    let n_out = arch.fc.len() + 1;
-    params
-        .get_mut(&format!("fc{n_out}.bias"))
-        .copy_from_slice(&crate::loss::initial_bias(head));
-    let mut grads = vec![0.0f32; params.data().len()];
+    let mut params = initial_params(arch, head, &mut rng);
     let mut opt = AdamW::new(&params, cfg.weight_decay);
     let batch = cfg.batch.min(train.len()).max(2);
-    let mut graph = Graph::new(arch, batch);
-    let mut dout = Mat::<f32>::zeros(arch.output, batch);
+    let mut stepper = Stepper::new(arch, head, input_scale, cfg, batch, params.data().len());
     let mut order: Vec<usize> = (0..train.len()).collect();
     let steps_per_epoch = train.len() / batch;
-    let total_steps = (steps_per_epoch * cfg.epochs).max(1);
-    let warmup = steps_per_epoch.max(1);
+    let schedule = Schedule {
+        lr: cfg.lr,
+        warmup: steps_per_epoch.max(1),
+        total: (steps_per_epoch * cfg.epochs).max(1),
+    };
     let mut step = 0usize;
     let mut best = (f32::INFINITY, 0usize, params.clone());
     let mut best_mae = f32::INFINITY;
     let mut epochs_run = 0;
-    let mut yj = vec![0.0f32; arch.output];
-    let mut dyj = vec![0.0f32; arch.output];
     for epoch in 1..=cfg.epochs {
         epochs_run = epoch;
         order.shuffle(&mut rng);
         let mut loss_sum = 0.0f64;
         let mut lr = cfg.lr;
-        for b in 0..steps_per_epoch {
-            let idx = &order[b * batch..(b + 1) * batch];
-            {
-                let mut x = graph.input_mut();
-                for (j, &i) in idx.iter().enumerate() {
-                    let s = scale_input(train.v_north[i], train.v_east[i], input_scale);
-                    x[(0, j)] = s[0];
-                    x[(1, j)] = s[1];
-                }
-            }
-            graph.sample_dropout(cfg.dropout, &mut rng);
-            graph.forward(&mut params, Mode::Train);
-            let out = graph.output();
-            for (j, &i) in idx.iter().enumerate() {
-                for k in 0..arch.output {
-                    yj[k] = out[(k, j)];
-                }
-                let (l, _, _) = crate::loss::head_loss(
-                    head,
-                    &yj,
-                    train.v_north[i],
-                    train.v_east[i],
-                    train.heading_deg[i],
-                    cfg.sigma_weight,
-                    &mut dyj,
-                );
-                loss_sum += l as f64;
-                for k in 0..arch.output {
-                    dout[(k, j)] = dyj[k] / batch as f32;
-                }
-            }
-            graph.backward(&params, dout.as_ref(), &mut grads);
-            lr = if step < warmup {
-                cfg.lr * (step + 1) as f32 / warmup as f32
-            } else {
-                let p = (step - warmup) as f32 / (total_steps - warmup).max(1) as f32;
-                cfg.lr * (0.01 + 0.99 * 0.5 * (1.0 + (std::f32::consts::PI * p.min(1.0)).cos()))
-            };
-            opt.step(params.data_mut(), &grads, lr);
+        for idx in order.chunks_exact(batch) {
+            loss_sum += stepper.gradients(&mut params, train, idx, &mut rng);
+            lr = schedule.at(step);
+            opt.step(params.data_mut(), &stepper.grads, lr);
             step += 1;
         }
         let net = Network::fold(&params);
@@ -857,9 +817,133 @@ pub fn train(
         }
     }
     let (_, best_epoch, params) = best;
-    let net = Network::fold(&params);
+    let (accuracy_sigma_scale, sigma_scale) = fit_sigma_scales(&params, head, input_scale, val);
+    Trained {
+        params,
+        accuracy_sigma_scale,
+        sigma_scale,
+        best_epoch,
+        best_val_mae_deg: best_mae,
+        epochs_run,
+    }
+}
+
+/// Random weights, and an output bias at the head's neutral answer (so the first
+/// steps refine a sensible estimate instead of undoing a random one).
+fn initial_params(arch: &Arch, head: &Head, rng: &mut ChaCha8Rng) -> ParamSet {
+    let mut params = ParamSet::init(arch, |b| rng.random_range(-b..b));
+    let n_out = arch.fc.len() + 1;
+    params
+        .get_mut(&format!("fc{n_out}.bias"))
+        .copy_from_slice(&crate::loss::initial_bias(head));
+    params
+}
+
+/// The learning rate: a linear warm-up over the first epoch, then a cosine decay to 1 %
+/// of `lr` at the last step (large steps early, fine ones at the end).
+struct Schedule {
+    lr: f32,
+    warmup: usize,
+    total: usize,
+}
+
+impl Schedule {
+    fn at(&self, step: usize) -> f32 {
+        if step < self.warmup {
+            self.lr * (step + 1) as f32 / self.warmup as f32
+        } else {
+            let p = (step - self.warmup) as f32 / (self.total - self.warmup).max(1) as f32;
+            self.lr * (0.01 + 0.99 * 0.5 * (1.0 + (std::f32::consts::PI * p.min(1.0)).cos()))
+        }
+    }
+}
+
+/// The buffers of one mini-batch step, allocated once for the whole training.
+struct Stepper<'a> {
+    head: &'a Head,
+    input_scale: f32,
+    cfg: &'a TrainConfig,
+    graph: Graph,
+    dout: Mat<f32>,
+    grads: Vec<f32>,
+    yj: Vec<f32>,
+    dyj: Vec<f32>,
+}
+
+impl<'a> Stepper<'a> {
+    fn new(
+        arch: &Arch,
+        head: &'a Head,
+        input_scale: f32,
+        cfg: &'a TrainConfig,
+        batch: usize,
+        n_params: usize,
+    ) -> Self {
+        Stepper {
+            head,
+            input_scale,
+            cfg,
+            graph: Graph::new(arch, batch),
+            dout: Mat::<f32>::zeros(arch.output, batch),
+            grads: vec![0.0; n_params],
+            yj: vec![0.0; arch.output],
+            dyj: vec![0.0; arch.output],
+        }
+    }
+
+    /// Forward and backward over the samples `idx` of `train`: leaves the batch's
+    /// gradients in `self.grads` and returns the summed loss.
+    fn gradients(
+        &mut self,
+        params: &mut ParamSet,
+        train: &Dataset,
+        idx: &[usize],
+        rng: &mut ChaCha8Rng,
+    ) -> f64 {
+        let batch = idx.len();
+        {
+            let mut x = self.graph.input_mut();
+            for (j, &i) in idx.iter().enumerate() {
+                let s = scale_input(train.v_north[i], train.v_east[i], self.input_scale);
+                x[(0, j)] = s[0];
+                x[(1, j)] = s[1];
+            }
+        }
+        self.graph.sample_dropout(self.cfg.dropout, rng);
+        self.graph.forward(params, Mode::Train);
+        let out = self.graph.output();
+        let mut loss_sum = 0.0f64;
+        for (j, &i) in idx.iter().enumerate() {
+            for (k, y) in self.yj.iter_mut().enumerate() {
+                *y = out[(k, j)];
+            }
+            let (l, _, _) = crate::loss::head_loss(
+                self.head,
+                &self.yj,
+                train.v_north[i],
+                train.v_east[i],
+                train.heading_deg[i],
+                self.cfg.sigma_weight,
+                &mut self.dyj,
+            );
+            loss_sum += l as f64;
+            for (k, d) in self.dyj.iter().enumerate() {
+                self.dout[(k, j)] = d / batch as f32;
+            }
+        }
+        self.graph
+            .backward(params, self.dout.as_ref(), &mut self.grads);
+        loss_sum
+    }
+}
+
+/// The σ scales of the trained `params` fitted on `val`: the one for the speed-accuracy
+/// σ (NaN where the head does not use sAcc or no sample reports it) and the one for the
+/// network's own σ.
+fn fit_sigma_scales(params: &ParamSet, head: &Head, input_scale: f32, val: &Dataset) -> (f32, f32) {
+    let net = Network::fold(params);
     let (errs, sigmas) = evaluate(&net, head, input_scale, val);
-    let accuracy_sigma_scale = if head.uses_speed_accuracy() {
+    let accuracy = if head.uses_speed_accuracy() {
         let (e, b): (Vec<f32>, Vec<f32>) = (0..val.len())
             .filter_map(|i| {
                 let base = accuracy_sigma_base(val.v_north[i], val.v_east[i], val.speed_acc[i])?;
@@ -874,14 +958,7 @@ pub fn train(
     } else {
         f32::NAN
     };
-    Trained {
-        params,
-        accuracy_sigma_scale,
-        sigma_scale: fit_sigma_scale(&errs, &sigmas),
-        best_epoch,
-        best_val_mae_deg: best_mae,
-        epochs_run,
-    }
+    (accuracy, fit_sigma_scale(&errs, &sigmas))
 }
 
 #[cfg(test)]
