@@ -13,6 +13,8 @@
 //! the cross-process test kit (`ghnet-testkit`), the soak and perf tools and the
 //! demo's `--isolated` mode all use it.
 
+pub mod alloc;
+
 use std::hash::{BuildHasher, Hasher};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU32, Ordering};

@@ -18,8 +18,6 @@
 
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::Arc;
 use std::time::Duration;
@@ -37,38 +35,10 @@ use ghnet_client::{
 /// 128 samples); one allocation per sample is 1.0.
 const MARGIN: f64 = 0.25;
 
-struct Counting;
-
-thread_local! {
-    static COUNTED: Cell<bool> = const { Cell::new(false) };
-}
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: forwards to the system allocator; the bookkeeping itself never allocates.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTED.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTED.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Relaxed);
-        }
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use ghnet_client::testing::alloc::{allocations, count_this_thread, CountingAllocator};
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn count_this_thread() {
-    COUNTED.with(|c| c.set(true));
-}
+static GLOBAL: CountingAllocator = CountingAllocator;
 
 const SOURCES: [&str; 4] = ["a", "b", "c", "d"];
 /// Samples per source per burst: a burst of all sources is one full round (128).
@@ -159,9 +129,9 @@ fn fewest(mut measure: impl FnMut() -> f64) -> f64 {
 fn counted(samples: u64, run: impl FnOnce(u64)) -> f64 {
     // The server's last allocation for earlier samples (its Zenoh put) comes before
     // the notify that delivered the answer, so nothing of earlier work is counted.
-    let before = ALLOCATIONS.load(Relaxed);
+    let before = allocations();
     run(samples);
-    (ALLOCATIONS.load(Relaxed) - before) as f64 / samples as f64
+    (allocations() - before) as f64 / samples as f64
 }
 
 /// The publishers and consumers around a server.

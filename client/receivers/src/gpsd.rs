@@ -212,11 +212,8 @@ mod tests {
     use super::*;
 
     fn decode(text: &str) -> (Vec<Epoch>, Stats) {
-        let mut dec = GpsdDecoder::new();
-        let mut out = Vec::new();
-        dec.push(text.as_bytes(), &mut out);
-        dec.finish();
-        (out, dec.stats().clone())
+        let d = crate::decode(text.as_bytes(), Some(crate::Format::Gpsd));
+        (d.epochs, d.stats)
     }
 
     #[test]

@@ -448,11 +448,8 @@ mod tests {
     use super::*;
 
     fn decode(text: &str) -> (Vec<Epoch>, Stats) {
-        let mut dec = NmeaDecoder::new();
-        let mut out = Vec::new();
-        dec.push(text.as_bytes(), &mut out);
-        dec.finish();
-        (out, dec.stats().clone())
+        let d = crate::decode(text.as_bytes(), Some(crate::Format::Nmea));
+        (d.epochs, d.stats)
     }
 
     #[test]

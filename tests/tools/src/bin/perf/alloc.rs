@@ -5,9 +5,6 @@
 //! figure. Everything on that thread counts: receive, model, both outputs and
 //! housekeeping; Zenoh's own runtime threads do not.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::Duration;
 
 use ghnet_client::zenoh::{Session, Wait};
@@ -18,34 +15,10 @@ use ghnet_testkit::TestNamespace;
 use crate::latency::moving_sample;
 use crate::{row, Args, Row};
 
-struct Counting;
-
-thread_local! {
-    static COUNTED: Cell<bool> = const { Cell::new(false) };
-}
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: forwards to the system allocator; the bookkeeping itself never allocates.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTED.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Relaxed);
-        }
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if COUNTED.with(Cell::get) {
-            ALLOCATIONS.fetch_add(1, Relaxed);
-        }
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use ghnet_client::testing::alloc::{allocations, count_this_thread, CountingAllocator};
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: CountingAllocator = CountingAllocator;
 
 /// Allocations per answered sample on the daemon thread, one sample in flight,
 /// with the Zenoh output on (and a subscriber on `session`) or off.
@@ -72,7 +45,7 @@ fn per_sample(
     let shutdown = ghnetd::ShutdownFlag::new();
     let stop = shutdown.clone();
     let daemon = std::thread::spawn(move || {
-        COUNTED.with(|c| c.set(true));
+        count_this_thread();
         ghnetd::run(config, stop)
     });
     let result = (|| -> anyhow::Result<f64> {
@@ -107,11 +80,11 @@ fn per_sample(
         for seq in 0..warmup {
             round(seq)?;
         }
-        let before = ALLOCATIONS.load(Relaxed);
+        let before = allocations();
         for seq in warmup..warmup + n {
             round(seq)?;
         }
-        Ok((ALLOCATIONS.load(Relaxed) - before) as f64 / n as f64)
+        Ok((allocations() - before) as f64 / n as f64)
     })();
     shutdown.request();
     let stats = daemon
