@@ -271,9 +271,10 @@ pub struct CarDrive {
 }
 
 impl CarDrive {
-    /// `seconds` of car at `rate_hz`, ending `seconds / 3` after the first time the car
-    /// backs up after having driven faster than 4 m/s (so the stretch shows driving,
-    /// the stop, the reversal and what follows). `seed` picks the first car tried; the
+    /// Up to `seconds` of car at `rate_hz`, ending `seconds / 3` after the first time
+    /// the car backs up after having driven faster than 4 m/s, and starting at most 8 s
+    /// before the last fast epoch before it (so the stretch shows driving, the stop, the reversal
+    /// and what follows). `seed` picks the first car tried; the
     /// next seeds are tried until one has such a moment.
     pub fn new(seed: u64, rate_hz: u32, seconds: f64) -> Self {
         let params = DriveParams {
@@ -295,7 +296,9 @@ impl CarDrive {
         let fast = track.iter().position(|s| s.true_speed > 4.0)?;
         let back = fast + track[fast..].iter().position(|s| s.reversing)?;
         let end_t = track[back].t_s + seconds / 3.0;
-        let start_t = (end_t - seconds).max(0.0);
+        // Start while the car drives, not in a long stand before it.
+        let last_fast = track[..back].iter().rposition(|s| s.true_speed > 4.0)?;
+        let start_t = (end_t - seconds).max(track[last_fast].t_s - 8.0).max(0.0);
         let stretch: Vec<DriveSample> = track
             .iter()
             .filter(|s| s.t_s >= start_t && s.t_s < end_t)
