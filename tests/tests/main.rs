@@ -13,7 +13,8 @@
 //! - `zenoh_output`, `zenoh_acl`, `netns`, `python` — the Zenoh output, its access
 //!   control, another network namespace, the Python clients.
 //! - `soak` — 100 sources × 10 Hz × 60 s through `ghnet_tools::soak`.
-//! - `gnss` — every real receiver capture through the `ghnet-gnss` bridge.
+//! - `gnss` — every real receiver capture through the `ghnet-gnss` bridge; `fleet` —
+//!   two vehicles through a Zenoh router, one wildcard consumer, a router restart.
 //!
 //! The kit finds `ghnetd` and its own bins next to this executable: `cargo test
 //! --workspace` builds them; for this crate alone, `cargo build -p ghnetd -p
@@ -27,6 +28,7 @@ mod crash;
 mod discovery;
 mod echo;
 mod faults;
+mod fleet;
 mod gnss;
 mod invalid;
 mod netns;
