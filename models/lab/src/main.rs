@@ -63,6 +63,10 @@ enum Cmd {
         /// Override the recipe's maximum epochs.
         #[arg(long)]
         epochs: Option<usize>,
+        /// Temporal recipes: JSON merged into the recipe's training configuration, for
+        /// experiments, e.g. `{"lr": 5e-4, "modes": {"a_max": 6}}`.
+        #[arg(long)]
+        config: Option<String>,
         /// Hide the progress bar.
         #[arg(long)]
         quiet: bool,
@@ -236,13 +240,106 @@ fn load(model: &str) -> Result<Arc<Model>> {
 
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
-        Cmd::Simulate {
-            which:
-                SimCmd::Drive {
-                    params,
+        Cmd::Simulate { which } => simulate(which),
+        Cmd::Train {
+            recipe,
+            data,
+            init,
+            heading_range,
+            output,
+            seed,
+            epochs,
+            config,
+            quiet,
+        } => {
+            if !data.is_empty() {
+                let output = output.context("--output is required with --data")?;
+                return commands::train_data(
+                    &data,
+                    &output,
+                    init.as_deref(),
+                    heading_range,
                     seed,
-                    output,
-                },
+                    epochs,
+                );
+            }
+            let recipe = recipe.context("--recipe or --data")?;
+            let output = output
+                .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
+            if recipe.starts_with("ghnet-temporal") {
+                return commands::train_temporal_recipe(
+                    &recipe,
+                    &output,
+                    seed,
+                    epochs,
+                    config.as_deref(),
+                );
+            }
+            let mut r = Recipe::named(&recipe).with_context(|| {
+                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch, ghnet-temporal, ghnet-temporal-car, ghnet-temporal-tip)")
+            })?;
+            r.train.seed = seed.unwrap_or(r.train.seed);
+            r.train.epochs = epochs.unwrap_or(r.train.epochs);
+            train_recipe(&r, &output, quiet)
+        }
+        Cmd::Eval {
+            model,
+            data,
+            kf,
+            plot,
+            out_dir,
+        } => {
+            let m = load(&model)?;
+            if data.is_some() || m.is_stateful() {
+                commands::eval_stream(&m, data.as_deref(), kf.as_deref(), plot.as_deref())
+            } else {
+                eval_epoch(&m, out_dir)
+            }
+        }
+        Cmd::Infer {
+            model,
+            input,
+            output,
+        } => infer(&load(&model)?, &input, &output),
+        Cmd::Export { model, output } => {
+            let m = load(&model)?;
+            std::fs::write(&output, m.to_safetensors())
+                .with_context(|| format!("writing {}", output.display()))?;
+            eprintln!("wrote {} ({}) to {}", m.name(), m.id(), output.display());
+            Ok(())
+        }
+        Cmd::Info { model } => {
+            println!("{}", serde_json::to_string_pretty(load(&model)?.meta())?);
+            Ok(())
+        }
+        Cmd::Bench {
+            model,
+            kernel,
+            seconds,
+            json,
+        } => {
+            let r = bench::run(&load(&model)?, kernel.resolve()?, seconds);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                println!("{}", r.to_markdown());
+            }
+            Ok(())
+        }
+        Cmd::Forward { model } => {
+            let m = load(&model)?;
+            forward_stdin(&m)
+        }
+    }
+}
+
+/// `ghnet simulate ...`.
+fn simulate(which: SimCmd) -> Result<()> {
+    let (samples, output) = match which {
+        SimCmd::Drive {
+            params,
+            seed,
+            output,
         } => {
             let tracks = ghnet_lab::drive::simulate(&params, seed);
             ghnet_lab::logs::write_tracks_csv(&output, &tracks)?;
@@ -252,177 +349,85 @@ fn run(cli: Cli) -> Result<()> {
                 tracks.len(),
                 output.display()
             );
+            return Ok(());
         }
-        Cmd::Simulate { which } => {
-            let (samples, output) = match which {
-                SimCmd::S1 {
-                    params,
-                    seed,
-                    output,
-                } => (sim::simulate_s1(&params, seed), output),
-                SimCmd::Realistic {
-                    params,
-                    seed,
-                    output,
-                } => (sim::simulate_realistic(&params, seed), output),
-                SimCmd::Drive { .. } => unreachable!("matched above"),
-            };
-            sim::write_csv(&output, &samples)
-                .with_context(|| format!("writing {}", output.display()))?;
-            eprintln!("wrote {} samples to {}", samples.len(), output.display());
-        }
-        Cmd::Train {
-            data,
-            init,
-            heading_range,
-            output,
+        SimCmd::S1 {
+            params,
             seed,
-            epochs,
-            ..
-        } if !data.is_empty() => {
-            let output = output.context("--output is required with --data")?;
-            commands::train_data(&data, &output, init.as_deref(), heading_range, seed, epochs)?;
-        }
-        Cmd::Train {
-            recipe: Some(recipe),
             output,
+        } => (sim::simulate_s1(&params, seed), output),
+        SimCmd::Realistic {
+            params,
             seed,
-            epochs,
-            ..
-        } if recipe.starts_with("ghnet-temporal") => {
-            let output = output
-                .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
-            commands::train_temporal_recipe(&recipe, &output, seed, epochs)?;
-        }
-        Cmd::Train {
-            recipe,
             output,
-            seed,
-            epochs,
-            quiet,
-            ..
-        } => {
-            let recipe = recipe.context("--recipe or --data")?;
-            let mut r = Recipe::named(&recipe).with_context(|| {
-                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch, ghnet-temporal, ghnet-temporal-mixed, ghnet-temporal-tip)")
-            })?;
-            if let Some(s) = seed {
-                r.train.seed = s;
-            }
-            if let Some(e) = epochs {
-                r.train.epochs = e;
-            }
-            let output = output
-                .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
-            train_recipe(&r, &output, quiet)?;
-        }
-        Cmd::Eval {
-            model,
-            data,
-            kf,
-            plot,
-            ..
-        } if data.is_some() || load(&model)?.is_stateful() => {
-            let m = load(&model)?;
-            commands::eval_stream(&m, data.as_deref(), kf.as_deref(), plot.as_deref())?;
-        }
-        Cmd::Eval { model, out_dir, .. } => {
-            let model = load(&model)?;
-            let data: DataSpec = serde_json::from_value(model.meta().training_data.clone())
-                .context("model metadata `training_data` does not name a simulator to regenerate its held-out data")?;
-            let max_speed = model.meta().training["eval_max_speed"]
-                .as_f64()
-                .unwrap_or(5.0);
-            let (_, _, test) = recipes::split(&data.generate());
-            let report = recipes::evaluate(&model, &data, &test, max_speed)?;
-            let md = eval::to_markdown(&report);
-            match out_dir {
-                None => println!("{md}"),
-                Some(dir) => {
-                    std::fs::create_dir_all(&dir)?;
-                    let name = model.name();
-                    std::fs::write(dir.join(format!("{name}.md")), &md)?;
-                    std::fs::write(
-                        dir.join(format!("{name}.summary.md")),
-                        eval::to_markdown_compact(&report, name, 200),
-                    )?;
-                    eval::write_csv(dir.join(format!("{name}.csv")), &report)?;
-                    std::fs::write(
-                        dir.join(format!("{name}.json")),
-                        serde_json::to_string_pretty(&report)?,
-                    )?;
-                    plot::plot_mae_vs_speed_with(
-                        &report,
-                        dir.join(format!("{name}.svg")),
-                        plot::YScale::Log,
-                    )?;
-                    eprintln!(
-                        "wrote {}/{name}.{{md,summary.md,csv,json,svg}}",
-                        dir.display()
-                    );
-                }
-            }
-        }
-        Cmd::Infer {
-            model,
-            input,
-            output,
-        } => {
-            let model = load(&model)?;
-            let inp = File::open(&input)
-                .with_context(|| format!("cannot open input {}", input.display()))?;
-            let out = File::create(&output)
-                .with_context(|| format!("cannot create output {}", output.display()))?;
-            let (inp, out) = (
-                BufReader::with_capacity(1 << 16, inp),
-                BufWriter::with_capacity(1 << 16, out),
-            );
-            let s = if model.is_stateful() {
-                replay::run(&mut replay::Streams::new(model), inp, out)
-            } else {
-                replay::run(&mut Predictor::new(model), inp, out)
-            }
-            .with_context(|| format!("{}", input.display()))?;
-            let first = s
-                .first_invalid_row
-                .map(|r| format!(" (first at row {r})"))
-                .unwrap_or_default();
-            eprintln!(
-                "{} rows, {} invalid{first} -> {}",
-                s.rows,
-                s.invalid,
-                output.display()
-            );
-        }
-        Cmd::Export { model, output } => {
-            let m = load(&model)?;
-            std::fs::write(&output, m.to_safetensors())
-                .with_context(|| format!("writing {}", output.display()))?;
-            eprintln!("wrote {} ({}) to {}", m.name(), m.id(), output.display());
-        }
-        Cmd::Info { model } => {
-            let m = load(&model)?;
-            println!("{}", serde_json::to_string_pretty(m.meta())?);
-        }
-        Cmd::Bench {
-            model,
-            kernel,
-            seconds,
-            json,
-        } => {
-            let m = load(&model)?;
-            let r = bench::run(&m, kernel.resolve()?, seconds);
-            if json {
-                println!("{}", serde_json::to_string_pretty(&r)?);
-            } else {
-                println!("{}", r.to_markdown());
-            }
-        }
-        Cmd::Forward { model } => {
-            let m = load(&model)?;
-            forward_stdin(&m)?;
-        }
+        } => (sim::simulate_realistic(&params, seed), output),
+    };
+    sim::write_csv(&output, &samples).with_context(|| format!("writing {}", output.display()))?;
+    eprintln!("wrote {} samples to {}", samples.len(), output.display());
+    Ok(())
+}
+
+/// `ghnet eval` of a per-epoch model on its held-out data.
+fn eval_epoch(model: &Arc<Model>, out_dir: Option<PathBuf>) -> Result<()> {
+    let data: DataSpec = serde_json::from_value(model.meta().training_data.clone()).context(
+        "model metadata `training_data` does not name a simulator to regenerate its held-out data",
+    )?;
+    let max_speed = model.meta().training["eval_max_speed"]
+        .as_f64()
+        .unwrap_or(5.0);
+    let (_, _, test) = recipes::split(&data.generate());
+    let report = recipes::evaluate(model, &data, &test, max_speed)?;
+    let md = eval::to_markdown(&report);
+    let Some(dir) = out_dir else {
+        println!("{md}");
+        return Ok(());
+    };
+    std::fs::create_dir_all(&dir)?;
+    let name = model.name();
+    std::fs::write(dir.join(format!("{name}.md")), &md)?;
+    std::fs::write(
+        dir.join(format!("{name}.summary.md")),
+        eval::to_markdown_compact(&report, name, 200),
+    )?;
+    eval::write_csv(dir.join(format!("{name}.csv")), &report)?;
+    std::fs::write(
+        dir.join(format!("{name}.json")),
+        serde_json::to_string_pretty(&report)?,
+    )?;
+    plot::plot_mae_vs_speed_with(&report, dir.join(format!("{name}.svg")), plot::YScale::Log)?;
+    eprintln!(
+        "wrote {}/{name}.{{md,summary.md,csv,json,svg}}",
+        dir.display()
+    );
+    Ok(())
+}
+
+/// `ghnet infer`: answer every row of a CSV log.
+fn infer(model: &Arc<Model>, input: &std::path::Path, output: &std::path::Path) -> Result<()> {
+    let inp =
+        File::open(input).with_context(|| format!("cannot open input {}", input.display()))?;
+    let out = File::create(output)
+        .with_context(|| format!("cannot create output {}", output.display()))?;
+    let (inp, out) = (
+        BufReader::with_capacity(1 << 16, inp),
+        BufWriter::with_capacity(1 << 16, out),
+    );
+    let s = if model.is_stateful() {
+        replay::run(&mut replay::Streams::new(model.clone()), inp, out)
+    } else {
+        replay::run(&mut Predictor::new(model.clone()), inp, out)
     }
+    .with_context(|| format!("{}", input.display()))?;
+    let first = s
+        .first_invalid_row
+        .map(|r| format!(" (first at row {r})"))
+        .unwrap_or_default();
+    eprintln!(
+        "{} rows, {} invalid{first} -> {}",
+        s.rows,
+        s.invalid,
+        output.display()
+    );
     Ok(())
 }
 
