@@ -292,7 +292,13 @@ pub fn from_bytes(bytes: &[u8]) -> Result<(ParamSet, ModelMeta), WeightsError> {
             reason: "must be a positive number".into(),
         });
     }
-    let mut params = ParamSet::zeros(&meta.architecture);
+    let params = read_tensors(&st, &meta.architecture)?;
+    Ok((params, meta))
+}
+
+/// Every tensor `arch` needs, checked for presence, dtype, shape and finite values.
+fn read_tensors(st: &SafeTensors<'_>, arch: &Arch) -> Result<ParamSet, WeightsError> {
+    let mut params = ParamSet::zeros(arch);
     for i in 0..params.specs().len() {
         let spec = params.specs()[i].clone();
         let view = st
@@ -327,7 +333,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<(ParamSet, ModelMeta), WeightsError> {
             }
         }
     }
-    Ok((params, meta))
+    Ok(params)
 }
 
 /// Largest layer width a model file may declare. The shipped networks are at most 192

@@ -71,26 +71,13 @@ pub fn train_temporal_recipe(
     for t in &tables {
         println!("### {}\n\n{}", t.title, streval::to_markdown(t));
     }
-    let all = tables.last().expect("an 'all' table");
-    let mut meta = model.meta().clone();
-    meta.training = serde_json::json!({
-        "config": r.train,
-        "best_epoch": trained.best_epoch,
-        "epochs_run": trained.epochs_run,
-        "best_val_mae_deg": trained.best_val_mae_deg,
-        "seconds": t0.elapsed().as_secs_f64(),
-    });
-    meta.metrics = serde_json::json!({
-        "test_epochs": all.rows.iter().find(|r| r.label == "**all**").map(|r| r.count),
-        "mae_deg": all.overall(model.name()),
-        "kf_mae_deg": all.overall("kf"),
-        "atan2_mae_deg": all.overall(streval::ATAN2),
-        "after_first_motion": {
-            "mae_deg": all.after_motion(model.name()),
-            "kf_mae_deg": all.after_motion("kf"),
-            "atan2_mae_deg": all.after_motion(streval::ATAN2),
-        },
-    });
+    let meta = shipped_meta(
+        &model,
+        &trained,
+        &tables,
+        &r.train,
+        t0.elapsed().as_secs_f64(),
+    );
     let out = Model::new(model.params().clone(), meta);
     std::fs::write(output, out.to_safetensors())
         .with_context(|| format!("writing {}", output.display()))?;
@@ -104,6 +91,38 @@ pub fn train_temporal_recipe(
         kf_path.display()
     );
     Ok(())
+}
+
+/// The trained model's metadata with its training run and its test metrics (overall and
+/// after the first motion) written in.
+fn shipped_meta(
+    model: &Model,
+    trained: &ghnet_lab::temporal::TrainedTemporal,
+    tables: &[streval::Table],
+    cfg: &TemporalConfig,
+    seconds: f64,
+) -> ModelMeta {
+    let all = tables.last().expect("an 'all' table");
+    let mut meta = model.meta().clone();
+    meta.training = serde_json::json!({
+        "config": cfg,
+        "best_epoch": trained.best_epoch,
+        "epochs_run": trained.epochs_run,
+        "best_val_mae_deg": trained.best_val_mae_deg,
+        "seconds": seconds,
+    });
+    meta.metrics = serde_json::json!({
+        "test_epochs": all.rows.iter().find(|r| r.label == "**all**").map(|r| r.count),
+        "mae_deg": all.overall(model.name()),
+        "kf_mae_deg": all.overall("kf"),
+        "atan2_mae_deg": all.overall(streval::ATAN2),
+        "after_first_motion": {
+            "mae_deg": all.after_motion(model.name()),
+            "kf_mae_deg": all.after_motion("kf"),
+            "atan2_mae_deg": all.after_motion(streval::ATAN2),
+        },
+    });
+    meta
 }
 
 /// `cfg` with the JSON object `json` merged into it (nested objects key by key).

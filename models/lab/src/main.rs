@@ -241,47 +241,7 @@ fn load(model: &str) -> Result<Arc<Model>> {
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Simulate { which } => simulate(which),
-        Cmd::Train {
-            recipe,
-            data,
-            init,
-            heading_range,
-            output,
-            seed,
-            epochs,
-            config,
-            quiet,
-        } => {
-            if !data.is_empty() {
-                let output = output.context("--output is required with --data")?;
-                return commands::train_data(
-                    &data,
-                    &output,
-                    init.as_deref(),
-                    heading_range,
-                    seed,
-                    epochs,
-                );
-            }
-            let recipe = recipe.context("--recipe or --data")?;
-            let output = output
-                .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
-            if recipe.starts_with("ghnet-temporal") {
-                return commands::train_temporal_recipe(
-                    &recipe,
-                    &output,
-                    seed,
-                    epochs,
-                    config.as_deref(),
-                );
-            }
-            let mut r = Recipe::named(&recipe).with_context(|| {
-                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch, ghnet-temporal, ghnet-temporal-car, ghnet-temporal-tip)")
-            })?;
-            r.train.seed = seed.unwrap_or(r.train.seed);
-            r.train.epochs = epochs.unwrap_or(r.train.epochs);
-            train_recipe(&r, &output, quiet)
-        }
+        c @ Cmd::Train { .. } => train(c),
         Cmd::Eval {
             model,
             data,
@@ -331,6 +291,40 @@ fn run(cli: Cli) -> Result<()> {
             forward_stdin(&m)
         }
     }
+}
+
+/// `ghnet train ...`: a shipped recipe, or a temporal model on the user's logs.
+fn train(cmd: Cmd) -> Result<()> {
+    let Cmd::Train {
+        recipe,
+        data,
+        init,
+        heading_range,
+        output,
+        seed,
+        epochs,
+        config,
+        quiet,
+    } = cmd
+    else {
+        unreachable!("called with Cmd::Train")
+    };
+    if !data.is_empty() {
+        let output = output.context("--output is required with --data")?;
+        return commands::train_data(&data, &output, init.as_deref(), heading_range, seed, epochs);
+    }
+    let recipe = recipe.context("--recipe or --data")?;
+    let output =
+        output.unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
+    if recipe.starts_with("ghnet-temporal") {
+        return commands::train_temporal_recipe(&recipe, &output, seed, epochs, config.as_deref());
+    }
+    let mut r = Recipe::named(&recipe).with_context(|| {
+            format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch, ghnet-temporal, ghnet-temporal-car, ghnet-temporal-tip)")
+        })?;
+    r.train.seed = seed.unwrap_or(r.train.seed);
+    r.train.epochs = epochs.unwrap_or(r.train.epochs);
+    train_recipe(&r, &output, quiet)
 }
 
 /// `ghnet simulate ...`.
@@ -464,6 +458,23 @@ fn forward_stdin(m: &Model) -> Result<()> {
     Ok(())
 }
 
+/// The per-epoch progress bar of `ghnet train` (hidden with `--quiet`).
+fn progress_bar(quiet: bool, epochs: usize) -> indicatif::ProgressBar {
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(epochs as u64)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] epoch {pos}/{len} {msg}",
+        )
+        .expect("template")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
 fn train_recipe(r: &Recipe, output: &std::path::Path, quiet: bool) -> Result<()> {
     let t0 = std::time::Instant::now();
     let samples = r.data.generate();
@@ -482,18 +493,7 @@ fn train_recipe(r: &Recipe, output: &std::path::Path, quiet: bool) -> Result<()>
         test.len(),
         r.data.label()
     );
-    let bar = if quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(r.train.epochs as u64)
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] epoch {pos}/{len} {msg}",
-        )
-        .expect("template")
-        .progress_chars("=> "),
-    );
+    let bar = progress_bar(quiet, r.train.epochs);
     let arch = r.arch();
     let trained = train::train(&arch, &r.head, r.input_scale_mps, &tr, &va, &r.train, |e| {
         bar.set_position(e.epoch as u64);
@@ -535,33 +535,50 @@ fn train_recipe(r: &Recipe, output: &std::path::Path, quiet: bool) -> Result<()>
         kind: ghnet_models::weights::ModelKind::Epoch,
     };
     // Measure on held-out data and store the headline numbers in the file itself.
-    let model = Arc::new(Model::new(trained.params.clone(), meta.clone()));
-    let report = recipes::evaluate(&model, &r.data, &test, r.eval_max_speed)?;
+    let (metrics, summary) = test_metrics(&trained.params, &meta, r, &test)?;
+    meta.metrics = metrics;
+    ghnet_models::weights::write(output, &trained.params, &meta)
+        .with_context(|| format!("writing {}", output.display()))?;
+    eprintln!(
+        "{}: best epoch {} of {}, {summary}, {:.0} s -> {}",
+        r.name,
+        trained.best_epoch,
+        trained.epochs_run,
+        t0.elapsed().as_secs_f64(),
+        output.display()
+    );
+    Ok(())
+}
+
+/// A per-epoch model's metrics on its recipe's `test` samples (for its metadata) and a
+/// one-line summary.
+fn test_metrics(
+    params: &ghnet_models::params::ParamSet,
+    meta: &ModelMeta,
+    r: &Recipe,
+    test: &[ghnet_lab::sim::Sample],
+) -> Result<(serde_json::Value, String)> {
+    let model = Arc::new(Model::new(params.clone(), meta.clone()));
+    let report = recipes::evaluate(&model, &r.data, test, r.eval_max_speed)?;
     let overall = report
         .overall
         .stats_of(&r.name)
         .context("model missing from its own report")?;
-    meta.metrics = serde_json::json!({
+    let atan2 = report.overall.stats_of(eval::ATAN2).map(|s| s.mae_deg);
+    let metrics = serde_json::json!({
         "test_samples": test.len(),
         "mae_deg": overall.mae_deg,
         "rmse_deg": overall.rmse_deg,
         "within_1sigma": overall.within_1sigma,
         "within_2sigma": overall.within_2sigma,
-        "atan2_mae_deg": report.overall.stats_of(eval::ATAN2).map(|s| s.mae_deg),
+        "atan2_mae_deg": atan2,
     });
-    ghnet_models::weights::write(output, &trained.params, &meta)
-        .with_context(|| format!("writing {}", output.display()))?;
-    eprintln!(
-        "{}: best epoch {} of {}, test MAE {:.3}° (atan2 {:.3}°), within 1σ {:.1}%, 2σ {:.1}%, {:.0} s -> {}",
-        r.name,
-        trained.best_epoch,
-        trained.epochs_run,
+    let summary = format!(
+        "test MAE {:.3}° (atan2 {:.3}°), within 1σ {:.1}%, 2σ {:.1}%",
         overall.mae_deg,
-        report.overall.stats_of(eval::ATAN2).map(|s| s.mae_deg).unwrap_or(f64::NAN),
+        atan2.unwrap_or(f64::NAN),
         100.0 * overall.within_1sigma.unwrap_or(f64::NAN),
         100.0 * overall.within_2sigma.unwrap_or(f64::NAN),
-        t0.elapsed().as_secs_f64(),
-        output.display()
     );
-    Ok(())
+    Ok((metrics, summary))
 }

@@ -475,6 +475,28 @@ fn val_mae(params: &ParamSet, meta: &ModelMeta, val: &[LogTrack]) -> f32 {
     mean_abs_deg(&stream_errors(&model, val).err)
 }
 
+/// Mini-batches per training epoch (from a recording of the untrained model; the draw of
+/// tile offsets uses a copy of `rng`, so it does not advance it).
+fn steps_per_epoch(
+    params: &ParamSet,
+    meta: &ModelMeta,
+    train: &[LogTrack],
+    cfg: &TemporalConfig,
+    rng: &ChaCha8Rng,
+) -> Result<usize> {
+    let cols = cfg.tile_len + cfg.window - 1;
+    let model = Arc::new(Model::new(params.clone(), meta.clone()));
+    let rec0 = record(&model, train, cfg.window, cfg.max_gap_s, None);
+    let n = tiles(&rec0, cols, cfg.tile_len, &mut rng.clone()).len();
+    if n < cfg.tiles {
+        bail!(
+            "too little training data: fewer than {} runs of {cols} epochs",
+            cfg.tiles
+        );
+    }
+    Ok(n / cfg.tiles)
+}
+
 /// Train (or, with `init`, fine-tune) a temporal model named `name` on `train` tracks,
 /// selecting on streamed validation MAE over `val` tracks (epoch 0, the mode filter
 /// alone or `init`, competes too). `kf` gives the start convention. `progress` sees
@@ -493,24 +515,10 @@ pub fn train(
     let mut params = initial_params(init, &arch, cfg, &mut rng)?;
     let cols = cfg.tile_len + cfg.window - 1;
     let meta = temporal_meta(name, arch.clone(), cfg, kf);
-    let n_tiles = |rec: &Recorded| tiles(rec, cols, cfg.tile_len, &mut rng.clone()).len();
-    let rec0 = record(
-        &Arc::new(Model::new(params.clone(), meta.clone())),
-        train,
-        cfg.window,
-        cfg.max_gap_s,
-        None,
-    );
-    if n_tiles(&rec0) < cfg.tiles {
-        bail!(
-            "too little training data: fewer than {} runs of {cols} epochs",
-            cfg.tiles
-        );
-    }
+    let steps_per_epoch = steps_per_epoch(&params, &meta, train, cfg, &rng)?;
     let mut batch = Batch::new(&arch, cfg.tiles * cols);
     let mut grads = vec![0.0f32; params.data().len()];
     let mut opt = AdamW::new(&params, cfg.weight_decay);
-    let steps_per_epoch = n_tiles(&rec0) / cfg.tiles;
     let total = steps_per_epoch * cfg.epochs;
     let rules_mae = val_mae(&params, &meta, val);
     progress(0, f32::NAN, rules_mae, rules_mae);
