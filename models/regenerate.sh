@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Retrain every shipped model from its recipe and regenerate the reports and README tables.
 # Deterministic: the same code on the same machine writes the same weights.
-# About 20 minutes on 2 cores (ghnet-temporal ~10, ghnet-epoch ~4, paper-s1 ~5). Then
+# About 12 minutes on 2 cores (ghnet-temporal ~3, ghnet-epoch ~4, paper-s1 ~5). Then
 # rebuild (the binaries embed the models) and run `cargo test -p ghnet-lab --test shipped`.
 # SHARED points at the shared data folder (default ../shared, beside the repository).
 set -euo pipefail

@@ -27,6 +27,7 @@
 pub mod gelu;
 pub mod head;
 pub mod model;
+pub mod modes;
 pub mod net;
 pub mod params;
 pub mod simd;

@@ -5,14 +5,14 @@
 //! uniform prior is symmetric around it); a vehicle's heading is continuous, so history
 //! can. Three engines answer through the same calls:
 //!
-//! * **temporal** (the default model): each epoch's inputs ([`inputs`]), expressed
-//!   relative to the model's own previous heading so the network never has to compute
-//!   an angle, go through the paper's kernel-1 convolution stack once; the features are
-//!   pushed into a ring of the last `W` epochs, and the fully connected head (collapsed
-//!   to one affine map, as in the paper's network) reads the ring and gives the gains of
-//!   a filter step ([`crate::head::Head::Filter`]): hold the previous heading, follow the
-//!   course (how far: a learned gain), and whether the course is turned by 180°
-//!   (reversing). Per epoch that is one
+//! * **temporal** (the default model): the mode filter ([`crate::modes`]: a circular
+//!   Kalman filter with a reverse mode, a vehicle class, a receiver-noise estimate and a
+//!   glitch gate) prepares each epoch's step; the step's numbers ([`inputs`]), expressed
+//!   relative to the previous heading so the network never has to compute an angle, go
+//!   through the paper's kernel-1 convolution stack once; the features are pushed into
+//!   a ring of the last `W` epochs, and the fully connected head (collapsed to one affine
+//!   map, as in the paper's network) reads the ring and corrects the step: the gain, the
+//!   reverse decision and σ ([`crate::modes::commit`]). Per epoch that is one
 //!   convolution pass and one small matrix-vector product; nothing is recomputed and
 //!   nothing is allocated.
 //! * **kf**: the circular Kalman filter on atan2 ([`ModelKind::Kf`]): random-walk heading,
@@ -23,8 +23,9 @@
 //! arrival order; the history is cleared when time goes backwards, when a time step is
 //! longer than the model's `max_gap_s` (the vehicle may have turned anywhere meanwhile),
 //! and on an explicit [`History::reset`] (a restarted source). Each clearing is counted
-//! ([`History::resets`]). Invalid epochs are answered `Invalid` and leave the history as
-//! it was.
+//! ([`History::resets`]). A gap keeps what the temporal model learnt about the vehicle
+//! (car or platform, the receiver's noise), not its heading. Invalid epochs are answered
+//! `Invalid` and leave the history as it was.
 //!
 //! A stopped vehicle (speed under `max(stationary_speed, 3·sAcc)`) that has a heading
 //! from its history is answered [`Status::Held`] with that heading and a σ that grows
@@ -36,14 +37,17 @@ use crate::head::{
     accuracy_sigma_base, filter_step, heading_deg, scale_input, KalmanBase, MAX_STD_DEG,
 };
 use crate::model::{finish_epoch, Engine, Model, Prediction, Status, StatusPolicy};
+use crate::modes::{commit, prepare, Step};
 use crate::net::Scratch;
 use crate::weights::ModelKind;
 
-/// Per-epoch inputs of the temporal network (see [`inputs`]).
-pub const INPUTS: usize = 11;
+pub use crate::modes::StepState;
 
-/// Speed (m/s) above which an epoch counts as moving for the history's clocks (time
-/// stopped, time reversing), when the receiver's accuracy does not demand more.
+/// Per-epoch inputs of the temporal network (see [`inputs`]).
+pub const INPUTS: usize = 20;
+
+/// Speed (m/s) above which an epoch counts as moving for the Kalman filter's clock of
+/// time stopped, when the receiver's accuracy does not demand more.
 pub const MOVING_SPEED: f32 = 0.5;
 
 /// Largest σ in radians (a uniform error on the circle), as a log: the "no heading" σ.
@@ -86,35 +90,6 @@ pub struct ResetCounts {
     pub explicit: u64,
 }
 
-/// The scalar recurrent state one step reads and writes. The lab's training feeds the
-/// network these values from a recurrent run (teacher forcing on its own outputs), so
-/// they are public and produced only by [`advance`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepState {
-    /// Previous heading, radians (not wrapped).
-    pub psi: f32,
-    /// Previous raw `log σ` (σ in radians, before calibration).
-    pub log_sigma: f32,
-    /// Whether `psi` exists (false on the first epoch of a history).
-    pub has_prior: bool,
-    /// Seconds since the last moving epoch.
-    pub t_still: f32,
-    /// Seconds the course has been opposite the heading while moving (a reversal in
-    /// progress, or a heading that is wrong by 180°: the network tells them apart).
-    pub t_opposite: f32,
-}
-
-impl StepState {
-    /// The state of an empty history.
-    pub const EMPTY: StepState = StepState {
-        psi: 0.0,
-        log_sigma: 0.0,
-        has_prior: false,
-        t_still: 0.0,
-        t_opposite: 0.0,
-    };
-}
-
 /// Whether an epoch counts as moving: over [`MOVING_SPEED`] and over 4 σ of the
 /// receiver's reported noise.
 #[inline]
@@ -155,46 +130,64 @@ pub fn kalman_base(
     KalmanBase { p, r2: r * r }
 }
 
-/// The temporal network's per-epoch inputs, all O(1): the course relative to the
-/// previous heading `(cos, sin)`, log and linear speed, the log measurement σ from
-/// sAcc and whether sAcc is known, the previous log σ, log dt, log time stopped, log
-/// time reversing, and the gain of the Kalman step it corrects. Relative angles make
+/// The temporal network's per-epoch inputs, all O(1), from the state before the epoch
+/// (`prev`), the state after the mode filter's rules (`st`) and the prepared `step`:
+/// the course relative to the step's prior `(cos, sin)`; log and linear speed; the log
+/// sAcc and whether sAcc is known; the logs of the prior σ, the measurement σ, dt, the
+/// time stopped and the time in the current mode; the Kalman gain; the rule's mode and
+/// the previous mode; whether the vehicle is a car, the epoch moves, the glitch gate
+/// fired, the step only holds (before the first motion); the log receiver-noise
+/// estimate; and the log acceleration from the last used velocity. Relative angles make
 /// the network rotation-invariant.
 pub fn inputs(
-    state: &StepState,
+    prev: &StepState,
+    st: &StepState,
+    step: &Step,
     v_north: f32,
     v_east: f32,
     speed_acc: f32,
     dt: f32,
-    base: &KalmanBase,
 ) -> [f32; INPUTS] {
-    let speed = v_north.hypot(v_east);
-    let a = v_east.atan2(v_north);
-    let prior = if state.has_prior { state.psi } else { a };
-    let (s, c) = (a - prior).sin_cos();
-    let acc = accuracy_sigma_base(v_north, v_east, speed_acc);
+    let speed = step.speed;
+    let (s, c) = (step.course - step.prior).sin_cos();
     let cap = log_sigma_cap();
-    let log_sigma = if state.has_prior {
-        state.log_sigma.clamp(crate::head::LOG_SIGMA_MIN, cap)
+    let log = |v: f32| 0.5 * v.max(1e-12).ln();
+    let flag = |b: bool| if b { 1.0 } else { 0.0 };
+    let accel = if prev.prev_v[0].is_finite() && dt > 0.0 {
+        (v_north - prev.prev_v[0]).hypot(v_east - prev.prev_v[1]) / dt
     } else {
-        cap
+        0.0
     };
     [
         c,
         s,
         0.5 * (speed + 0.02).ln(),
         speed.min(40.0) / 10.0,
-        acc.map_or(0.0, |r| 0.5 * r.max(1e-6).ln()),
-        if acc.is_some() { 1.0 } else { 0.0 },
-        0.5 * log_sigma,
+        if speed_acc.is_finite() {
+            log(speed_acc * speed_acc)
+        } else {
+            0.0
+        },
+        flag(speed_acc.is_finite()),
+        log(step.p).min(cap),
+        log(step.r2).min(cap),
+        step.k,
         0.5 * dt.clamp(0.01, 1000.0).ln(),
-        0.5 * state.t_still.ln_1p(),
-        0.5 * state.t_opposite.ln_1p(),
-        base.gain(),
+        0.5 * prev.t_still.min(1e4).ln_1p(),
+        0.5 * prev.t_mode.min(1e4).ln_1p(),
+        flag(step.rule_reverse),
+        flag(prev.reverse),
+        flag(st.vehicle.car),
+        flag(step.moving),
+        flag(step.glitch),
+        flag(step.hold),
+        log(st.vehicle.noise * st.vehicle.noise),
+        0.5 * accel.min(1e3).ln_1p(),
     ]
 }
 
-/// The state after an epoch answered with heading `psi` and raw `log_sigma`.
+/// The state after an epoch of the Kalman filter (or a per-epoch model) answered with
+/// heading `psi` and raw `log_sigma`.
 pub fn advance(
     state: &StepState,
     v_north: f32,
@@ -204,20 +197,35 @@ pub fn advance(
     psi: f32,
     log_sigma: f32,
 ) -> StepState {
-    let speed = v_north.hypot(v_east);
-    let mv = moving(speed, speed_acc);
-    let opposite = (v_east.atan2(v_north) - psi).cos() < 0.0;
+    let mv = moving(v_north.hypot(v_east), speed_acc);
     StepState {
         psi: crate::head::wrap_rad(psi),
         log_sigma,
         has_prior: true,
         t_still: if mv { 0.0 } else { state.t_still + dt },
-        t_opposite: match (mv, opposite) {
-            (true, true) => state.t_opposite + dt,
-            (true, false) => 0.0,
-            (false, _) => state.t_opposite,
-        },
+        ..*state
     }
+}
+
+/// The reported σ (degrees) of a temporal step: the filter's `log σ` plus the
+/// network's correction `y2`, with the variance of a misread direction
+/// ([`StepState::flip_var`]) added, through the calibration map of the vehicle's class;
+/// the uniform σ while the step only holds (before the first motion, as `kf` answers).
+pub fn reported_sigma(
+    step: &Step,
+    log_sigma: f32,
+    y2: f32,
+    st: &StepState,
+    maps: &crate::modes::SigmaMaps,
+) -> f32 {
+    if step.hold {
+        return MAX_STD_DEG;
+    }
+    let s = (log_sigma + y2)
+        .clamp(crate::head::LOG_SIGMA_MIN, crate::head::LOG_SIGMA_MAX)
+        .exp();
+    let raw = (s * s + st.flip_var).sqrt().to_degrees();
+    maps.apply(st.vehicle.car, step.moving, raw)
 }
 
 /// The temporal head: the fully connected layers collapsed to `y = W·[f_t, …, f_{t−W+1}]
@@ -388,7 +396,12 @@ impl History {
             Reset::Explicit => self.resets.explicit += 1,
         }
         self.last_reset = Some(why);
+        let kept = self.state.after_gap();
         self.clear_uncounted();
+        if why == Reset::Gap {
+            // The same vehicle and receiver: only the heading is lost.
+            self.state = kept;
+        }
     }
 
     /// Apply the time rules for an epoch at `t_s` and return its time step (0 for the
@@ -486,6 +499,8 @@ impl StreamPredictor {
             f32::NAN
         };
         let dt = h.step_time(e.t_s);
+        // Only a heading from earlier epochs can be held; a first epoch has none.
+        let had_prior = h.state.has_prior;
         let model = self.model.clone();
         let (psi, std_deg) = match model.engine() {
             Engine::Epoch(net) => {
@@ -504,15 +519,29 @@ impl StreamPredictor {
                 self.filter(h, &base, vn, ve, acc, dt, 1.0)
             }
             Engine::Temporal { features, head } => {
-                let base = kalman_base(&model.meta().kind, &h.state, vn, ve, dt);
-                let x = inputs(&h.state, vn, ve, acc, dt, &base);
+                let ModelKind::Temporal {
+                    sigma_v_mps,
+                    modes,
+                    sigma_map,
+                    ..
+                } = &model.meta().kind
+                else {
+                    unreachable!("a temporal engine has a temporal kind")
+                };
+                let prev = h.state;
+                let step = prepare(modes, *sigma_v_mps, &mut h.state, vn, ve, acc, dt);
+                let x = inputs(&prev, &h.state, &step, vn, ve, acc, dt);
                 let scratch = self.scratch.as_mut().expect("network scratch");
                 features.forward_one(&x, h.push_slot(), scratch);
                 head.apply(&h.ring, h.newest, h.filled, &mut self.y[..3]);
-                self.filter(h, &base, vn, ve, acc, dt, model.meta().sigma_scale)
+                let d = commit(&mut h.state, &step, &self.y[..3], dt);
+                (
+                    d.psi,
+                    reported_sigma(&step, d.log_sigma, self.y[2], &h.state, sigma_map),
+                )
             }
         };
-        self.finish(psi, std_deg, vn, ve, speed, acc)
+        self.finish(psi, std_deg, had_prior, [vn, ve, speed, acc])
     }
 
     /// The filter step from outputs `self.y`: heading (radians) and reported σ
@@ -538,8 +567,10 @@ impl StreamPredictor {
         (psi, std.min(MAX_STD_DEG))
     }
 
-    /// Heading in [0, 360), σ, status: `Held` for a stopped vehicle with a heading.
-    fn finish(&self, psi: f32, std: f32, vn: f32, ve: f32, speed: f32, acc: f32) -> Prediction {
+    /// Heading in [0, 360), σ, status: `Held` for a stopped vehicle with a heading from
+    /// earlier epochs (`had_prior`); `epoch` is `[v_north, v_east, speed, sAcc]`.
+    fn finish(&self, psi: f32, std: f32, had_prior: bool, epoch: [f32; 4]) -> Prediction {
+        let [vn, ve, speed, acc] = epoch;
         let deg = psi.to_degrees().rem_euclid(360.0);
         let deg = if deg >= 360.0 { 0.0 } else { deg };
         let held_speed = if acc.is_finite() {
@@ -548,7 +579,7 @@ impl StreamPredictor {
             self.policy.stationary_speed
         };
         let status = if speed < held_speed {
-            if std < 0.99 * MAX_STD_DEG {
+            if had_prior && std < 0.99 * MAX_STD_DEG {
                 Status::Held
             } else {
                 Status::Stationary
@@ -605,6 +636,8 @@ mod tests {
             max_gap_s: 5.0,
             q_deg_per_sqrt_s: 10.0,
             sigma_v_mps: 0.3,
+            modes: Default::default(),
+            sigma_map: Default::default(),
         };
         let m = meta(arch, kind, Head::Filter);
         let bytes = crate::weights::to_bytes(&p, &m);
@@ -665,21 +698,33 @@ mod tests {
         let mut scratch = features.scratch(1);
         let c = features.outputs();
         let mut xs: Vec<[f32; INPUTS]> = Vec::new();
+        let ModelKind::Temporal {
+            sigma_v_mps, modes, ..
+        } = model.meta().kind
+        else {
+            panic!("temporal kind")
+        };
+        let mut state = StepState::EMPTY;
+        let mut t_last: Option<f64> = None;
         for e in drive(60) {
-            let dt = h.t_last.map_or(0.0, |t| (e.t_s - t) as f32);
+            let dt = t_last.map_or(0.0, |t| (e.t_s - t) as f32);
+            t_last = Some(e.t_s);
             let acc = if e.speed_acc > 0.0 {
                 e.speed_acc
             } else {
                 f32::NAN
             };
-            let state = if h.t_last.is_some_and(|t| e.t_s - t <= 5.0 && e.t_s >= t) {
-                h.state
-            } else {
-                StepState::EMPTY
-            };
-            let base = kalman_base(&model.meta().kind, &state, e.v_north, e.v_east, dt);
-            xs.push(inputs(&state, e.v_north, e.v_east, acc, dt, &base));
-            let prior = state;
+            let prev = state;
+            let step = prepare(
+                &modes,
+                sigma_v_mps,
+                &mut state,
+                e.v_north,
+                e.v_east,
+                acc,
+                dt,
+            );
+            xs.push(inputs(&prev, &state, &step, e.v_north, e.v_east, acc, dt));
             let p = sp.predict(&mut h, &e);
             // Recompute: features of the last W inputs, newest first, zero when absent.
             let mut flat = vec![0.0f32; 4 * c];
@@ -691,10 +736,8 @@ mod tests {
             let y: Vec<f32> = (0..3)
                 .map(|o| b_fc[o] + (0..4 * c).map(|j| w_fc[(o, j)] * flat[j]).sum::<f32>())
                 .collect();
-            let a = e.v_east.atan2(e.v_north);
-            let prior = if prior.has_prior { prior.psi } else { a };
-            let psi = filter_step(&y, a, prior, &base)
-                .0
+            let psi = commit(&mut state, &step, &y, dt)
+                .psi
                 .to_degrees()
                 .rem_euclid(360.0);
             let d = (psi - p.heading_deg).rem_euclid(360.0);
@@ -780,6 +823,10 @@ mod tests {
             let b = p.predict(0.0, 3.0);
             assert_eq!(a, b);
             assert_ne!(a.status, Status::Held);
+            for (vn, ve) in [(0.0, 0.0), (0.01, -0.005)] {
+                let s = p.predict(vn, ve).status;
+                assert_eq!(s, Status::Stationary, "a first epoch holds nothing");
+            }
             let mut out = [Prediction::INVALID; 2];
             p.predict_batch(&[0.0, f32::NAN], &[3.0, 1.0], &mut out);
             assert_eq!(out[0], a);

@@ -47,20 +47,30 @@ pub const FORMAT: &str = "ghnet/1";
 /// temporal models existed) are per-epoch models.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+#[allow(clippy::large_enum_variant)] // one per model, read once per epoch by reference
 pub enum ModelKind {
     /// One epoch in, one heading out (the paper's network): no history.
     #[default]
     Epoch,
-    /// The network over a causal window of the source's recent epochs, run as a
-    /// learned filter step on its own previous output (`crate::stream`).
+    /// The network over a causal window of the source's recent epochs, correcting the
+    /// mode filter (`crate::modes`) on its own previous output (`crate::stream`).
     Temporal {
         /// A time step longer than this (s) clears the history: after a long fix gap
         /// the vehicle may have turned anywhere.
         max_gap_s: f32,
-        /// Random-walk heading noise of the Kalman step the network corrects, °/√s.
+        /// The tuned `kf`'s random-walk heading noise, °/√s (kept for reference: the
+        /// mode filter has its own process model).
         q_deg_per_sqrt_s: f32,
-        /// Velocity noise per axis of that step's measurement σ `σ_v/ŝ`, m/s.
+        /// The tuned `kf`'s velocity noise, m/s: until an epoch passes its measurement
+        /// gate, the model answers as `kf` does (the start convention).
         sigma_v_mps: f32,
+        /// The mode filter's constants (defaults when absent).
+        #[serde(default)]
+        modes: crate::modes::ModeParams,
+        /// Calibration of the reported σ per vehicle class, fitted on validation
+        /// tracks (identity when absent).
+        #[serde(default)]
+        sigma_map: crate::modes::SigmaMaps,
     },
     /// The model-free circular Kalman filter on atan2 (`crate::stream::Kf`): the baseline
     /// a temporal network must beat, shipped so it can be selected like any model.
@@ -282,7 +292,13 @@ pub fn from_bytes(bytes: &[u8]) -> Result<(ParamSet, ModelMeta), WeightsError> {
             reason: "must be a positive number".into(),
         });
     }
-    let mut params = ParamSet::zeros(&meta.architecture);
+    let params = read_tensors(&st, &meta.architecture)?;
+    Ok((params, meta))
+}
+
+/// Every tensor `arch` needs, checked for presence, dtype, shape and finite values.
+fn read_tensors(st: &SafeTensors<'_>, arch: &Arch) -> Result<ParamSet, WeightsError> {
+    let mut params = ParamSet::zeros(arch);
     for i in 0..params.specs().len() {
         let spec = params.specs()[i].clone();
         let view = st
@@ -317,7 +333,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<(ParamSet, ModelMeta), WeightsError> {
             }
         }
     }
-    Ok((params, meta))
+    Ok(params)
 }
 
 /// Largest layer width a model file may declare. The shipped networks are at most 192
@@ -365,6 +381,7 @@ fn check_arch(a: &Arch, kind: &ModelKind, head: &Head) -> Result<(), WeightsErro
             max_gap_s,
             q_deg_per_sqrt_s,
             sigma_v_mps,
+            ..
         } => {
             let ok = |v: f32| v.is_finite() && v > 0.0;
             if !(ok(max_gap_s) && ok(q_deg_per_sqrt_s) && ok(sigma_v_mps)) {

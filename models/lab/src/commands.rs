@@ -23,9 +23,13 @@ pub fn train_temporal_recipe(
     output: &Path,
     seed: Option<u64>,
     epochs: Option<usize>,
+    config: Option<&str>,
 ) -> Result<()> {
     let t0 = std::time::Instant::now();
     let mut r = TemporalRecipe::named(name).context("not a temporal recipe")?;
+    if let Some(c) = config {
+        r.train = merged(&r.train, c)?;
+    }
     if let Some(s) = seed {
         r.train.seed = s;
     }
@@ -67,21 +71,13 @@ pub fn train_temporal_recipe(
     for t in &tables {
         println!("### {}\n\n{}", t.title, streval::to_markdown(t));
     }
-    let all = tables.last().expect("an 'all' table");
-    let mut meta = model.meta().clone();
-    meta.training = serde_json::json!({
-        "config": r.train,
-        "best_epoch": trained.best_epoch,
-        "epochs_run": trained.epochs_run,
-        "best_val_mae_deg": trained.best_val_mae_deg,
-        "seconds": t0.elapsed().as_secs_f64(),
-    });
-    meta.metrics = serde_json::json!({
-        "test_epochs": all.rows.last().map(|r| r.count),
-        "mae_deg": all.overall(model.name()),
-        "kf_mae_deg": all.overall("kf"),
-        "atan2_mae_deg": all.overall(streval::ATAN2),
-    });
+    let meta = shipped_meta(
+        &model,
+        &trained,
+        &tables,
+        &r.train,
+        t0.elapsed().as_secs_f64(),
+    );
     let out = Model::new(model.params().clone(), meta);
     std::fs::write(output, out.to_safetensors())
         .with_context(|| format!("writing {}", output.display()))?;
@@ -95,6 +91,58 @@ pub fn train_temporal_recipe(
         kf_path.display()
     );
     Ok(())
+}
+
+/// The trained model's metadata with its training run and its test metrics (overall and
+/// after the first motion) written in.
+fn shipped_meta(
+    model: &Model,
+    trained: &ghnet_lab::temporal::TrainedTemporal,
+    tables: &[streval::Table],
+    cfg: &TemporalConfig,
+    seconds: f64,
+) -> ModelMeta {
+    let all = tables.last().expect("an 'all' table");
+    let mut meta = model.meta().clone();
+    meta.training = serde_json::json!({
+        "config": cfg,
+        "best_epoch": trained.best_epoch,
+        "epochs_run": trained.epochs_run,
+        "best_val_mae_deg": trained.best_val_mae_deg,
+        "seconds": seconds,
+    });
+    meta.metrics = serde_json::json!({
+        "test_epochs": all.rows.iter().find(|r| r.label == "**all**").map(|r| r.count),
+        "mae_deg": all.overall(model.name()),
+        "kf_mae_deg": all.overall("kf"),
+        "atan2_mae_deg": all.overall(streval::ATAN2),
+        "after_first_motion": {
+            "mae_deg": all.after_motion(model.name()),
+            "kf_mae_deg": all.after_motion("kf"),
+            "atan2_mae_deg": all.after_motion(streval::ATAN2),
+        },
+    });
+    meta
+}
+
+/// `cfg` with the JSON object `json` merged into it (nested objects key by key).
+fn merged(cfg: &TemporalConfig, json: &str) -> Result<TemporalConfig> {
+    fn merge(a: &mut serde_json::Value, b: serde_json::Value) {
+        match (a, b) {
+            (serde_json::Value::Object(a), serde_json::Value::Object(b)) => {
+                for (k, v) in b {
+                    merge(a.entry(k).or_insert(serde_json::Value::Null), v);
+                }
+            }
+            (a, b) => *a = b,
+        }
+    }
+    let mut v = serde_json::to_value(cfg)?;
+    merge(
+        &mut v,
+        serde_json::from_str(json).context("--config is not JSON")?,
+    );
+    serde_json::from_value(v).context("--config does not fit the training configuration")
 }
 
 /// `m` with the recipe as its `training_data`, so `ghnet eval` can regenerate the test
@@ -133,11 +181,15 @@ pub fn train_data(
             max_gap_s,
             q_deg_per_sqrt_s,
             sigma_v_mps,
+            modes,
+            ..
         } = m.meta().kind
         {
             cfg.max_gap_s = max_gap_s;
             cfg.window = m.params().arch().window;
-            // Fine-tuning keeps the Kalman step the network learned to correct.
+            // Fine-tuning keeps the mode filter and start convention the network
+            // learned to correct.
+            cfg.modes = modes;
             kf = Arc::new(streval::kf_model(q_deg_per_sqrt_s, sigma_v_mps, max_gap_s));
         }
         cfg.lr /= 4.0;

@@ -34,6 +34,9 @@ use crate::sim::Split;
 /// receiver takes every `10/rate`-th state.
 const DT: f64 = 0.1;
 
+/// Largest lateral acceleration of simulated vehicles, m/s².
+const A_LAT_MAX: f64 = 4.0;
+
 /// What moves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
@@ -128,6 +131,16 @@ pub struct DriveParams {
     /// Glitch probability per epoch.
     #[arg(long, default_value_t = 5e-4)]
     pub p_glitch: f64,
+    /// Stretches of poor sky (urban canyons: multipath) per minute (Poisson), each
+    /// 10 s to `bad_sky_max_s` long.
+    #[arg(long, default_value_t = 0.1)]
+    pub bad_sky_per_min: f64,
+    /// Longest stretch of poor sky, s.
+    #[arg(long, default_value_t = 90.0)]
+    pub bad_sky_max_s: f64,
+    /// Glitch probability per epoch under poor sky.
+    #[arg(long, default_value_t = 0.1)]
+    pub p_glitch_bad: f64,
     /// Share of tracks in validation.
     #[arg(long, default_value_t = 0.15)]
     pub val_fraction: f64,
@@ -149,6 +162,9 @@ impl Default for DriveParams {
             lag_max_s: 1.5,
             gaps_per_min: 0.3,
             p_glitch: 5e-4,
+            bad_sky_per_min: 0.1,
+            bad_sky_max_s: 90.0,
+            p_glitch_bad: 0.1,
             val_fraction: 0.15,
             test_fraction: 0.15,
         }
@@ -278,7 +294,13 @@ fn block(rng: &mut ChaCha8Rng, legs: &mut Vec<Leg>) {
         let r = uniform(rng, 8.0, 20.0);
         let side = if rng.random::<bool>() { 1.0 } else { -1.0 };
         let secs = r * std::f64::consts::FRAC_PI_2 / turn_speed;
-        legs.push(Leg::new(3.0, turn_speed, 0.0));
+        // Slow down to the turn speed first (1.5 m/s² is the gentlest braking drawn).
+        let approach = if u < 0.3 {
+            3.0
+        } else {
+            3.0 + (cruise - turn_speed) / 1.5
+        };
+        legs.push(Leg::new(approach, turn_speed, 0.0));
         legs.push(Leg::new(secs, turn_speed, side / r));
     }
 }
@@ -339,7 +361,10 @@ fn kinematics(rng: &mut ChaCha8Rng, legs: &[Leg], steps: usize) -> Vec<(f64, f64
         let limit = if target.abs() < v.abs() { dec } else { acc };
         v += (target - v).clamp(-limit * DT, limit * DT);
         let spin = if v.abs() < 0.05 { leg.spin } else { 0.0 };
-        heading = (heading + (v * leg.curvature).to_degrees() * DT + spin * DT).rem_euclid(360.0);
+        // Drivers keep lateral acceleration under ~0.4 g: a curve taken too fast widens.
+        let yaw =
+            (v * leg.curvature).clamp(-A_LAT_MAX / v.abs().max(0.1), A_LAT_MAX / v.abs().max(0.1));
+        heading = (heading + yaw.to_degrees() * DT + spin * DT).rem_euclid(360.0);
         out.push((heading, v));
     }
     out
@@ -353,6 +378,12 @@ struct Receiver {
     lag_s: f64,
     corr_s: f64,
     sacc_factor: f64,
+    /// Antenna-to-body misalignment: the course of a vehicle driving straight, relative
+    /// to where it points, degrees.
+    boresight_deg: f64,
+    /// Sideslip per lateral acceleration, °/(m/s²) (the velocity of the antenna turns
+    /// away from the body in curves).
+    slip_deg: f64,
 }
 
 impl Receiver {
@@ -376,6 +407,8 @@ impl Receiver {
             },
             corr_s: uniform(rng, 0.5, 3.0),
             sacc_factor: uniform(rng, 0.7, 1.5),
+            boresight_deg: 0.4 * rng.sample::<f64, _>(StandardNormal),
+            slip_deg: uniform(rng, -0.3, 0.3),
         }
     }
 }
@@ -395,29 +428,79 @@ pub fn simulate_track(
     let truth = kinematics(rng, &legs, steps);
     let rx = Receiver::draw(p, rng);
     let gaps = gap_mask(p, rng, steps);
-    let samples = observe(p, &rx, &truth, &gaps, rng);
+    let bad = bad_sky_mask(p, rng, steps);
+    let samples = observe(p, &rx, &truth, &gaps, &bad, rng);
     (rx.kind, rx.rate_hz, samples)
 }
 
 /// `true` at the 10 Hz steps where the receiver has no fix.
 fn gap_mask(p: &DriveParams, rng: &mut ChaCha8Rng, steps: usize) -> Vec<bool> {
+    stretches(rng, steps, p.gaps_per_min, |rng| {
+        match rng.random::<f64>() {
+            u if u < 0.7 => uniform(rng, 1.0, 5.0),
+            u if u < 0.95 => uniform(rng, 5.0, 30.0),
+            _ => uniform(rng, 30.0, 180.0),
+        }
+    })
+}
+
+/// `true` at the 10 Hz steps under poor sky.
+fn bad_sky_mask(p: &DriveParams, rng: &mut ChaCha8Rng, steps: usize) -> Vec<bool> {
+    let max = p.bad_sky_max_s.max(10.0);
+    stretches(rng, steps, p.bad_sky_per_min, |rng| uniform(rng, 10.0, max))
+}
+
+/// Stretches starting at `per_min` per minute (Poisson), each `len_s(rng)` seconds.
+fn stretches(
+    rng: &mut ChaCha8Rng,
+    steps: usize,
+    per_min: f64,
+    mut len_s: impl FnMut(&mut ChaCha8Rng) -> f64,
+) -> Vec<bool> {
     let mut mask = vec![false; steps];
-    let rate = p.gaps_per_min / 60.0 * DT;
+    let rate = per_min / 60.0 * DT;
     let mut k = 0;
     while k < steps {
         if rng.random::<f64>() < rate {
-            let len_s = match rng.random::<f64>() {
-                u if u < 0.7 => uniform(rng, 1.0, 5.0),
-                u if u < 0.95 => uniform(rng, 5.0, 30.0),
-                _ => uniform(rng, 30.0, 180.0),
-            };
-            let end = (k + (len_s / DT) as usize).min(steps);
+            let end = (k + (len_s(rng) / DT) as usize).min(steps);
             mask[k..end].fill(true);
             k = end;
         }
         k += 1;
     }
     mask
+}
+
+/// Velocity glitches: rare everywhere, frequent under poor sky, where one lasts one
+/// to a few epochs (a multipath reflection persists while the geometry does).
+struct Glitches {
+    left: u32,
+    offset: (f64, f64),
+}
+
+impl Glitches {
+    /// The glitch offset (m/s, north and east) of this output epoch.
+    fn next(&mut self, p: &DriveParams, bad: bool, rng: &mut ChaCha8Rng) -> (f64, f64) {
+        if self.left == 0 {
+            let prob = if bad { p.p_glitch_bad } else { p.p_glitch };
+            if rng.random::<f64>() >= prob {
+                return (0.0, 0.0);
+            }
+            let m = if bad {
+                uniform(rng, 0.5, 5.0)
+            } else {
+                uniform(rng, 1.0, 5.0)
+            };
+            let d = uniform(rng, 0.0, std::f64::consts::TAU);
+            self.offset = (m * d.cos(), m * d.sin());
+            self.left = 1;
+            while bad && self.left < 4 && rng.random::<f64>() < 0.35 {
+                self.left += 1;
+            }
+        }
+        self.left -= 1;
+        self.offset
+    }
 }
 
 /// The receiver's view of the true motion: lag, correlated + white noise, glitches,
@@ -427,6 +510,7 @@ fn observe(
     rx: &Receiver,
     truth: &[(f64, f64)],
     gaps: &[bool],
+    bad: &[bool],
     rng: &mut ChaCha8Rng,
 ) -> Vec<DriveSample> {
     let every = (10 / rx.rate_hz.clamp(1, 10)) as usize;
@@ -440,9 +524,17 @@ fn observe(
     let (mut ln, mut le) = (0.0, 0.0);
     let mut ar = [0.0f64; 2];
     let mut course = f64::NAN;
+    let mut glitches = Glitches {
+        left: 0,
+        offset: (0.0, 0.0),
+    };
     let mut out = Vec::new();
+    let mut h_prev = truth.first().map_or(0.0, |t| t.0);
     for (k, &(h, v)) in truth.iter().enumerate() {
-        let (s, c) = h.to_radians().sin_cos();
+        let yaw_rate = ((h - h_prev + 540.0).rem_euclid(360.0) - 180.0).to_radians() / DT;
+        h_prev = h;
+        let slip = rx.boresight_deg + rx.slip_deg * v.abs() * yaw_rate;
+        let (s, c) = (h + slip).to_radians().sin_cos();
         ln += alpha * (v * c - ln);
         le += alpha * (v * s - le);
         for a in &mut ar {
@@ -452,16 +544,9 @@ fn observe(
             continue;
         }
         let white = |rng: &mut ChaCha8Rng| rx.sigma * 0.6 * rng.sample::<f64, _>(StandardNormal);
-        let mut vn = ln + rx.sigma * 0.8 * ar[0] + white(rng);
-        let mut ve = le + rx.sigma * 0.8 * ar[1] + white(rng);
-        if rng.random::<f64>() < p.p_glitch {
-            let (m, d) = (
-                uniform(rng, 1.0, 5.0),
-                uniform(rng, 0.0, std::f64::consts::TAU),
-            );
-            vn += m * d.cos();
-            ve += m * d.sin();
-        }
+        let (gn, ge) = glitches.next(p, bad[k], rng);
+        let vn = ln + rx.sigma * 0.8 * ar[0] + white(rng) + gn;
+        let ve = le + rx.sigma * 0.8 * ar[1] + white(rng) + ge;
         let speed = vn.hypot(ve);
         if speed >= 0.1 || course.is_nan() {
             course = ve.atan2(vn);

@@ -5,6 +5,7 @@
 //! error, so σ learns the error scale without pulling on the heading.
 
 use ghnet_models::head::{sigmoid, wrap_rad, Head, KalmanBase, LOG_SIGMA_MAX, LOG_SIGMA_MIN};
+use ghnet_models::modes::{corrected_gain, reverse_logit, Step};
 
 /// Weight of the penalty that keeps the residual head's `(c, s)` near the unit circle,
 /// where `atan2(s, c)` is well conditioned.
@@ -144,6 +145,67 @@ pub fn filter_loss(
     (loss, e, s.exp())
 }
 
+/// Loss of the temporal model's correction of one mode-filter step
+/// ([`ghnet_models::modes::commit`]) and its gradient with respect to the three outputs
+/// in `dy`. Returns `(loss, wrapped error, raw σ)`.
+///
+/// The heading is `ψ = ψₚ + g·d` with `g` the Kalman gain `K` corrected in log-odds by
+/// `y₀` (`∂g/∂y₀ = g(1−g)`) and `d = wrap(A + r·π − ψₚ)`, `r` the reverse decision
+/// `[y₁ ± REVERSE_PRIOR > 0]`; the loss is the paper's MAE on its wrapped error. The
+/// decision is a step, so `y₁` learns by classification instead: a logistic loss
+/// (weight [`REVERSE_WEIGHT`]) towards `reverse` (the vehicle truly moves backwards)
+/// when that label is known. `y₂` corrects the step's `log σ` and gets the Gaussian
+/// likelihood of the detached error. A step that only holds (before the first motion)
+/// or jumps (a decision against the rule) has no gain to learn.
+pub fn mode_loss(
+    y: &[f32],
+    step: &Step,
+    truth_deg: f32,
+    reverse: Option<bool>,
+    sigma_weight: f32,
+    dy: &mut [f32],
+) -> (f32, f32, f32) {
+    dy[..3].fill(0.0);
+    let truth = truth_deg.to_radians();
+    if step.hold {
+        let e = wrap_rad(step.prior - truth);
+        return (0.0, e, ghnet_models::head::MAX_STD_DEG.to_radians());
+    }
+    let logit = reverse_logit(step.rule_reverse, y[1]);
+    let rev = logit > 0.0;
+    let z = step.course + if rev { std::f32::consts::PI } else { 0.0 };
+    let d = wrap_rad(z - step.prior);
+    let jump = rev != step.rule_reverse
+        && step.moving
+        && !step.glitch
+        && d.abs() > 0.5 * std::f32::consts::PI;
+    let (psi, var, dg) = if jump {
+        (z, step.r2, 0.0)
+    } else {
+        let g = corrected_gain(step.k, y[0]);
+        let v = (1.0 - g) * (1.0 - g) * step.p + g * g * step.r2;
+        (step.prior + g * d, v, g * (1.0 - g))
+    };
+    let e = wrap_rad(psi - truth);
+    let sign = e.signum() * (e != 0.0) as i32 as f32;
+    let log_sigma = 0.5 * var.max(1e-12).ln() + y[2];
+    let s = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
+    let inv_var = (-2.0 * s).exp();
+    let mut loss = e.abs() + sigma_weight * (0.5 * e * e * inv_var + s);
+    dy[0] = sign * d * dg;
+    if let (Some(r), true) = (reverse, step.moving) {
+        let z = if r { logit } else { -logit };
+        loss += REVERSE_WEIGHT * (-z.min(0.0) + (-z.abs()).exp().ln_1p());
+        dy[1] = REVERSE_WEIGHT * (sigmoid(logit) - r as i32 as f32);
+    }
+    dy[2] = if log_sigma == s {
+        sigma_weight * (1.0 - e * e * inv_var)
+    } else {
+        0.0
+    };
+    (loss, e, s.exp())
+}
+
 /// The reverse label of an epoch: `Some(course opposite to the true heading)` when the
 /// velocity clearly shows a direction (over 0.3 m/s and within 60° of either the heading
 /// or its opposite), `None` otherwise.
@@ -241,6 +303,80 @@ mod tests {
                 let mut t = [0.0; 3];
                 let lp = filter_loss(&yp, course, prior, &base, truth, rev, w, &mut t).0 as f64;
                 let lm = filter_loss(&ym, course, prior, &base, truth, rev, w, &mut t).0 as f64;
+                let fd = (lp - lm) / (2.0 * h as f64);
+                assert!(
+                    (fd - dy[k] as f64).abs() < 2e-3 * (1.0 + fd.abs()),
+                    "{y:?} output {k}: analytic {} fd {fd}",
+                    dy[k]
+                );
+            }
+        }
+    }
+
+    /// The mode filter's correction (the temporal model's new layer) against finite
+    /// differences: holding, following, reversing by the rule, with and without a
+    /// label, a zero Kalman gain. The decision is a step in `y₁`, kept away from it.
+    #[test]
+    fn mode_loss_gradient_matches_finite_differences() {
+        let step = |course: f32, prior: f32, k: f32, rule: bool| Step {
+            course,
+            prior,
+            p: 0.04,
+            r2: 0.05,
+            k,
+            rule_reverse: rule,
+            moving: true,
+            hold: false,
+            glitch: false,
+            sigma_v: 0.1,
+            speed: 1.0,
+        };
+        type Case = ([f32; 3], Step, f32, Option<bool>);
+        let cases: [Case; 6] = [
+            (
+                [0.1, 0.8, -1.0],
+                step(0.5, 0.2, 0.4, false),
+                30.0,
+                Some(true),
+            ),
+            (
+                [0.5, -0.7, 0.3],
+                step(2.0, -1.0, 0.7, true),
+                100.0,
+                Some(false),
+            ),
+            ([-0.4, 1.1, -2.0], step(-2.5, 0.9, 0.2, false), 45.0, None),
+            (
+                [0.0, -0.5, 0.5],
+                step(3.0, -3.0, 0.9, true),
+                200.0,
+                Some(true),
+            ),
+            (
+                [-0.5, 2.5, 0.1],
+                step(1.0, 1.2, 0.0, false),
+                250.0,
+                Some(false),
+            ),
+            (
+                [1.5, -6.0, 0.4],
+                step(0.3, 0.1, 0.5, true),
+                10.0,
+                Some(false),
+            ),
+        ];
+        for (y, st, truth, rev) in cases {
+            for k in 0..3 {
+                let w = if k == 2 { 0.3 } else { 0.0 };
+                let mut dy = [0.0; 3];
+                mode_loss(&y, &st, truth, rev, w, &mut dy);
+                let h = 1e-3;
+                let (mut yp, mut ym) = (y, y);
+                yp[k] += h;
+                ym[k] -= h;
+                let mut t = [0.0; 3];
+                let lp = mode_loss(&yp, &st, truth, rev, w, &mut t).0 as f64;
+                let lm = mode_loss(&ym, &st, truth, rev, w, &mut t).0 as f64;
                 let fd = (lp - lm) / (2.0 * h as f64);
                 assert!(
                     (fd - dy[k] as f64).abs() < 2e-3 * (1.0 + fd.abs()),

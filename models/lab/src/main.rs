@@ -63,6 +63,10 @@ enum Cmd {
         /// Override the recipe's maximum epochs.
         #[arg(long)]
         epochs: Option<usize>,
+        /// Temporal recipes: JSON merged into the recipe's training configuration, for
+        /// experiments, e.g. `{"lr": 5e-4, "modes": {"a_max": 6}}`.
+        #[arg(long)]
+        config: Option<String>,
         /// Hide the progress bar.
         #[arg(long)]
         quiet: bool,
@@ -236,13 +240,100 @@ fn load(model: &str) -> Result<Arc<Model>> {
 
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
-        Cmd::Simulate {
-            which:
-                SimCmd::Drive {
-                    params,
-                    seed,
-                    output,
-                },
+        Cmd::Simulate { which } => simulate(which),
+        c @ Cmd::Train { .. } => train(c),
+        Cmd::Eval {
+            model,
+            data,
+            kf,
+            plot,
+            out_dir,
+        } => {
+            let m = load(&model)?;
+            if data.is_some() || m.is_stateful() {
+                commands::eval_stream(&m, data.as_deref(), kf.as_deref(), plot.as_deref())
+            } else {
+                eval_epoch(&m, out_dir)
+            }
+        }
+        Cmd::Infer {
+            model,
+            input,
+            output,
+        } => infer(&load(&model)?, &input, &output),
+        Cmd::Export { model, output } => {
+            let m = load(&model)?;
+            std::fs::write(&output, m.to_safetensors())
+                .with_context(|| format!("writing {}", output.display()))?;
+            eprintln!("wrote {} ({}) to {}", m.name(), m.id(), output.display());
+            Ok(())
+        }
+        Cmd::Info { model } => {
+            println!("{}", serde_json::to_string_pretty(load(&model)?.meta())?);
+            Ok(())
+        }
+        Cmd::Bench {
+            model,
+            kernel,
+            seconds,
+            json,
+        } => {
+            let r = bench::run(&load(&model)?, kernel.resolve()?, seconds);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                println!("{}", r.to_markdown());
+            }
+            Ok(())
+        }
+        Cmd::Forward { model } => {
+            let m = load(&model)?;
+            forward_stdin(&m)
+        }
+    }
+}
+
+/// `ghnet train ...`: a shipped recipe, or a temporal model on the user's logs.
+fn train(cmd: Cmd) -> Result<()> {
+    let Cmd::Train {
+        recipe,
+        data,
+        init,
+        heading_range,
+        output,
+        seed,
+        epochs,
+        config,
+        quiet,
+    } = cmd
+    else {
+        unreachable!("called with Cmd::Train")
+    };
+    if !data.is_empty() {
+        let output = output.context("--output is required with --data")?;
+        return commands::train_data(&data, &output, init.as_deref(), heading_range, seed, epochs);
+    }
+    let recipe = recipe.context("--recipe or --data")?;
+    let output =
+        output.unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
+    if recipe.starts_with("ghnet-temporal") {
+        return commands::train_temporal_recipe(&recipe, &output, seed, epochs, config.as_deref());
+    }
+    let mut r = Recipe::named(&recipe).with_context(|| {
+            format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch, ghnet-temporal, ghnet-temporal-car, ghnet-temporal-tip)")
+        })?;
+    r.train.seed = seed.unwrap_or(r.train.seed);
+    r.train.epochs = epochs.unwrap_or(r.train.epochs);
+    train_recipe(&r, &output, quiet)
+}
+
+/// `ghnet simulate ...`.
+fn simulate(which: SimCmd) -> Result<()> {
+    let (samples, output) = match which {
+        SimCmd::Drive {
+            params,
+            seed,
+            output,
         } => {
             let tracks = ghnet_lab::drive::simulate(&params, seed);
             ghnet_lab::logs::write_tracks_csv(&output, &tracks)?;
@@ -252,177 +343,85 @@ fn run(cli: Cli) -> Result<()> {
                 tracks.len(),
                 output.display()
             );
+            return Ok(());
         }
-        Cmd::Simulate { which } => {
-            let (samples, output) = match which {
-                SimCmd::S1 {
-                    params,
-                    seed,
-                    output,
-                } => (sim::simulate_s1(&params, seed), output),
-                SimCmd::Realistic {
-                    params,
-                    seed,
-                    output,
-                } => (sim::simulate_realistic(&params, seed), output),
-                SimCmd::Drive { .. } => unreachable!("matched above"),
-            };
-            sim::write_csv(&output, &samples)
-                .with_context(|| format!("writing {}", output.display()))?;
-            eprintln!("wrote {} samples to {}", samples.len(), output.display());
-        }
-        Cmd::Train {
-            data,
-            init,
-            heading_range,
-            output,
+        SimCmd::S1 {
+            params,
             seed,
-            epochs,
-            ..
-        } if !data.is_empty() => {
-            let output = output.context("--output is required with --data")?;
-            commands::train_data(&data, &output, init.as_deref(), heading_range, seed, epochs)?;
-        }
-        Cmd::Train {
-            recipe: Some(recipe),
             output,
+        } => (sim::simulate_s1(&params, seed), output),
+        SimCmd::Realistic {
+            params,
             seed,
-            epochs,
-            ..
-        } if recipe.starts_with("ghnet-temporal") => {
-            let output = output
-                .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
-            commands::train_temporal_recipe(&recipe, &output, seed, epochs)?;
-        }
-        Cmd::Train {
-            recipe,
             output,
-            seed,
-            epochs,
-            quiet,
-            ..
-        } => {
-            let recipe = recipe.context("--recipe or --data")?;
-            let mut r = Recipe::named(&recipe).with_context(|| {
-                format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch, ghnet-temporal, ghnet-temporal-mixed, ghnet-temporal-tip)")
-            })?;
-            if let Some(s) = seed {
-                r.train.seed = s;
-            }
-            if let Some(e) = epochs {
-                r.train.epochs = e;
-            }
-            let output = output
-                .unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
-            train_recipe(&r, &output, quiet)?;
-        }
-        Cmd::Eval {
-            model,
-            data,
-            kf,
-            plot,
-            ..
-        } if data.is_some() || load(&model)?.is_stateful() => {
-            let m = load(&model)?;
-            commands::eval_stream(&m, data.as_deref(), kf.as_deref(), plot.as_deref())?;
-        }
-        Cmd::Eval { model, out_dir, .. } => {
-            let model = load(&model)?;
-            let data: DataSpec = serde_json::from_value(model.meta().training_data.clone())
-                .context("model metadata `training_data` does not name a simulator to regenerate its held-out data")?;
-            let max_speed = model.meta().training["eval_max_speed"]
-                .as_f64()
-                .unwrap_or(5.0);
-            let (_, _, test) = recipes::split(&data.generate());
-            let report = recipes::evaluate(&model, &data, &test, max_speed)?;
-            let md = eval::to_markdown(&report);
-            match out_dir {
-                None => println!("{md}"),
-                Some(dir) => {
-                    std::fs::create_dir_all(&dir)?;
-                    let name = model.name();
-                    std::fs::write(dir.join(format!("{name}.md")), &md)?;
-                    std::fs::write(
-                        dir.join(format!("{name}.summary.md")),
-                        eval::to_markdown_compact(&report, name, 200),
-                    )?;
-                    eval::write_csv(dir.join(format!("{name}.csv")), &report)?;
-                    std::fs::write(
-                        dir.join(format!("{name}.json")),
-                        serde_json::to_string_pretty(&report)?,
-                    )?;
-                    plot::plot_mae_vs_speed_with(
-                        &report,
-                        dir.join(format!("{name}.svg")),
-                        plot::YScale::Log,
-                    )?;
-                    eprintln!(
-                        "wrote {}/{name}.{{md,summary.md,csv,json,svg}}",
-                        dir.display()
-                    );
-                }
-            }
-        }
-        Cmd::Infer {
-            model,
-            input,
-            output,
-        } => {
-            let model = load(&model)?;
-            let inp = File::open(&input)
-                .with_context(|| format!("cannot open input {}", input.display()))?;
-            let out = File::create(&output)
-                .with_context(|| format!("cannot create output {}", output.display()))?;
-            let (inp, out) = (
-                BufReader::with_capacity(1 << 16, inp),
-                BufWriter::with_capacity(1 << 16, out),
-            );
-            let s = if model.is_stateful() {
-                replay::run(&mut replay::Streams::new(model), inp, out)
-            } else {
-                replay::run(&mut Predictor::new(model), inp, out)
-            }
-            .with_context(|| format!("{}", input.display()))?;
-            let first = s
-                .first_invalid_row
-                .map(|r| format!(" (first at row {r})"))
-                .unwrap_or_default();
-            eprintln!(
-                "{} rows, {} invalid{first} -> {}",
-                s.rows,
-                s.invalid,
-                output.display()
-            );
-        }
-        Cmd::Export { model, output } => {
-            let m = load(&model)?;
-            std::fs::write(&output, m.to_safetensors())
-                .with_context(|| format!("writing {}", output.display()))?;
-            eprintln!("wrote {} ({}) to {}", m.name(), m.id(), output.display());
-        }
-        Cmd::Info { model } => {
-            let m = load(&model)?;
-            println!("{}", serde_json::to_string_pretty(m.meta())?);
-        }
-        Cmd::Bench {
-            model,
-            kernel,
-            seconds,
-            json,
-        } => {
-            let m = load(&model)?;
-            let r = bench::run(&m, kernel.resolve()?, seconds);
-            if json {
-                println!("{}", serde_json::to_string_pretty(&r)?);
-            } else {
-                println!("{}", r.to_markdown());
-            }
-        }
-        Cmd::Forward { model } => {
-            let m = load(&model)?;
-            forward_stdin(&m)?;
-        }
+        } => (sim::simulate_realistic(&params, seed), output),
+    };
+    sim::write_csv(&output, &samples).with_context(|| format!("writing {}", output.display()))?;
+    eprintln!("wrote {} samples to {}", samples.len(), output.display());
+    Ok(())
+}
+
+/// `ghnet eval` of a per-epoch model on its held-out data.
+fn eval_epoch(model: &Arc<Model>, out_dir: Option<PathBuf>) -> Result<()> {
+    let data: DataSpec = serde_json::from_value(model.meta().training_data.clone()).context(
+        "model metadata `training_data` does not name a simulator to regenerate its held-out data",
+    )?;
+    let max_speed = model.meta().training["eval_max_speed"]
+        .as_f64()
+        .unwrap_or(5.0);
+    let (_, _, test) = recipes::split(&data.generate());
+    let report = recipes::evaluate(model, &data, &test, max_speed)?;
+    let md = eval::to_markdown(&report);
+    let Some(dir) = out_dir else {
+        println!("{md}");
+        return Ok(());
+    };
+    std::fs::create_dir_all(&dir)?;
+    let name = model.name();
+    std::fs::write(dir.join(format!("{name}.md")), &md)?;
+    std::fs::write(
+        dir.join(format!("{name}.summary.md")),
+        eval::to_markdown_compact(&report, name, 200),
+    )?;
+    eval::write_csv(dir.join(format!("{name}.csv")), &report)?;
+    std::fs::write(
+        dir.join(format!("{name}.json")),
+        serde_json::to_string_pretty(&report)?,
+    )?;
+    plot::plot_mae_vs_speed_with(&report, dir.join(format!("{name}.svg")), plot::YScale::Log)?;
+    eprintln!(
+        "wrote {}/{name}.{{md,summary.md,csv,json,svg}}",
+        dir.display()
+    );
+    Ok(())
+}
+
+/// `ghnet infer`: answer every row of a CSV log.
+fn infer(model: &Arc<Model>, input: &std::path::Path, output: &std::path::Path) -> Result<()> {
+    let inp =
+        File::open(input).with_context(|| format!("cannot open input {}", input.display()))?;
+    let out = File::create(output)
+        .with_context(|| format!("cannot create output {}", output.display()))?;
+    let (inp, out) = (
+        BufReader::with_capacity(1 << 16, inp),
+        BufWriter::with_capacity(1 << 16, out),
+    );
+    let s = if model.is_stateful() {
+        replay::run(&mut replay::Streams::new(model.clone()), inp, out)
+    } else {
+        replay::run(&mut Predictor::new(model.clone()), inp, out)
     }
+    .with_context(|| format!("{}", input.display()))?;
+    let first = s
+        .first_invalid_row
+        .map(|r| format!(" (first at row {r})"))
+        .unwrap_or_default();
+    eprintln!(
+        "{} rows, {} invalid{first} -> {}",
+        s.rows,
+        s.invalid,
+        output.display()
+    );
     Ok(())
 }
 
@@ -459,6 +458,23 @@ fn forward_stdin(m: &Model) -> Result<()> {
     Ok(())
 }
 
+/// The per-epoch progress bar of `ghnet train` (hidden with `--quiet`).
+fn progress_bar(quiet: bool, epochs: usize) -> indicatif::ProgressBar {
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(epochs as u64)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] epoch {pos}/{len} {msg}",
+        )
+        .expect("template")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
 fn train_recipe(r: &Recipe, output: &std::path::Path, quiet: bool) -> Result<()> {
     let t0 = std::time::Instant::now();
     let samples = r.data.generate();
@@ -477,18 +493,7 @@ fn train_recipe(r: &Recipe, output: &std::path::Path, quiet: bool) -> Result<()>
         test.len(),
         r.data.label()
     );
-    let bar = if quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(r.train.epochs as u64)
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] epoch {pos}/{len} {msg}",
-        )
-        .expect("template")
-        .progress_chars("=> "),
-    );
+    let bar = progress_bar(quiet, r.train.epochs);
     let arch = r.arch();
     let trained = train::train(&arch, &r.head, r.input_scale_mps, &tr, &va, &r.train, |e| {
         bar.set_position(e.epoch as u64);
@@ -530,33 +535,50 @@ fn train_recipe(r: &Recipe, output: &std::path::Path, quiet: bool) -> Result<()>
         kind: ghnet_models::weights::ModelKind::Epoch,
     };
     // Measure on held-out data and store the headline numbers in the file itself.
-    let model = Arc::new(Model::new(trained.params.clone(), meta.clone()));
-    let report = recipes::evaluate(&model, &r.data, &test, r.eval_max_speed)?;
+    let (metrics, summary) = test_metrics(&trained.params, &meta, r, &test)?;
+    meta.metrics = metrics;
+    ghnet_models::weights::write(output, &trained.params, &meta)
+        .with_context(|| format!("writing {}", output.display()))?;
+    eprintln!(
+        "{}: best epoch {} of {}, {summary}, {:.0} s -> {}",
+        r.name,
+        trained.best_epoch,
+        trained.epochs_run,
+        t0.elapsed().as_secs_f64(),
+        output.display()
+    );
+    Ok(())
+}
+
+/// A per-epoch model's metrics on its recipe's `test` samples (for its metadata) and a
+/// one-line summary.
+fn test_metrics(
+    params: &ghnet_models::params::ParamSet,
+    meta: &ModelMeta,
+    r: &Recipe,
+    test: &[ghnet_lab::sim::Sample],
+) -> Result<(serde_json::Value, String)> {
+    let model = Arc::new(Model::new(params.clone(), meta.clone()));
+    let report = recipes::evaluate(&model, &r.data, test, r.eval_max_speed)?;
     let overall = report
         .overall
         .stats_of(&r.name)
         .context("model missing from its own report")?;
-    meta.metrics = serde_json::json!({
+    let atan2 = report.overall.stats_of(eval::ATAN2).map(|s| s.mae_deg);
+    let metrics = serde_json::json!({
         "test_samples": test.len(),
         "mae_deg": overall.mae_deg,
         "rmse_deg": overall.rmse_deg,
         "within_1sigma": overall.within_1sigma,
         "within_2sigma": overall.within_2sigma,
-        "atan2_mae_deg": report.overall.stats_of(eval::ATAN2).map(|s| s.mae_deg),
+        "atan2_mae_deg": atan2,
     });
-    ghnet_models::weights::write(output, &trained.params, &meta)
-        .with_context(|| format!("writing {}", output.display()))?;
-    eprintln!(
-        "{}: best epoch {} of {}, test MAE {:.3}° (atan2 {:.3}°), within 1σ {:.1}%, 2σ {:.1}%, {:.0} s -> {}",
-        r.name,
-        trained.best_epoch,
-        trained.epochs_run,
+    let summary = format!(
+        "test MAE {:.3}° (atan2 {:.3}°), within 1σ {:.1}%, 2σ {:.1}%",
         overall.mae_deg,
-        report.overall.stats_of(eval::ATAN2).map(|s| s.mae_deg).unwrap_or(f64::NAN),
+        atan2.unwrap_or(f64::NAN),
         100.0 * overall.within_1sigma.unwrap_or(f64::NAN),
         100.0 * overall.within_2sigma.unwrap_or(f64::NAN),
-        t0.elapsed().as_secs_f64(),
-        output.display()
     );
-    Ok(())
+    Ok((metrics, summary))
 }

@@ -202,7 +202,7 @@ pub struct Table {
     pub title: String,
     /// Estimator names.
     pub names: Vec<String>,
-    /// Bands, then "all".
+    /// Bands, then "all", then (when known) "after first motion".
     pub rows: Vec<Row>,
     /// Whether bands use true speed (simulated) or measured speed (logs without it).
     pub true_speed: bool,
@@ -211,8 +211,18 @@ pub struct Table {
 impl Table {
     /// The "all" row's MAE of estimator `name`.
     pub fn overall(&self, name: &str) -> Option<f64> {
+        self.row("**all**", name).map(|c| c.mae_deg)
+    }
+
+    /// The "after first motion" row's MAE of estimator `name`.
+    pub fn after_motion(&self, name: &str) -> Option<f64> {
+        self.row("after first motion", name).map(|c| c.mae_deg)
+    }
+
+    /// Estimator `name`'s cell in the row labelled `label`.
+    pub fn row(&self, label: &str, name: &str) -> Option<&Cell> {
         let k = self.names.iter().position(|n| n == name)?;
-        Some(self.rows.last()?.cells[k].mae_deg)
+        Some(&self.rows.iter().find(|r| r.label == label)?.cells[k])
     }
 }
 
@@ -231,8 +241,43 @@ fn cell(a: &Answers, truth: &[f32], idx: &[usize]) -> Cell {
     }
 }
 
-/// Tabulate `answers` on `tracks` per band.
-pub fn table(title: &str, tracks: &[LogTrack], answers: &[Answers]) -> Table {
+/// Per epoch of `tracks` (concatenated): whether its history has seen motion, i.e.
+/// an epoch whose speed passes the Kalman filter's measurement gate (`|v|² > 2σ_v²`,
+/// σ_v of the tuned `kf`), with the history rules of `max_gap_s`. Before that, nothing
+/// knows a parked vehicle's heading and every stateful model answers the first
+/// epoch's course (the shared start convention), so tables also show the MAE after it.
+pub fn after_first_motion(tracks: &[LogTrack], sigma_v: f32, max_gap_s: f32) -> Vec<bool> {
+    let cap = ghnet_models::head::MAX_STD_DEG.to_radians();
+    // The gate of `ghnet_models::modes::prepare`: σ_v/ŝ under the uniform σ.
+    let gate = sigma_v * sigma_v * (2.0 + 1.0 / (cap * cap));
+    let mut out = Vec::new();
+    for t in tracks {
+        let (mut moved, mut first) = (false, true);
+        for i in 0..t.len() {
+            if i > 0 {
+                let dt = t.t_s[i] - t.t_s[i - 1];
+                if dt < 0.0 || dt > max_gap_s as f64 {
+                    (moved, first) = (false, true);
+                }
+            }
+            let s2 = t.v_north[i] * t.v_north[i] + t.v_east[i] * t.v_east[i];
+            // A history's first epoch only sets the course; the gate counts after it.
+            moved |= !first && s2 > gate;
+            first = false;
+            out.push(moved);
+        }
+    }
+    out
+}
+
+/// Tabulate `answers` on `tracks` per band; `moved` (per epoch, from
+/// [`after_first_motion`]) adds a last row over the epochs after the first motion.
+pub fn table(
+    title: &str,
+    tracks: &[LogTrack],
+    answers: &[Answers],
+    moved: Option<&[bool]>,
+) -> Table {
     let truth: Vec<f32> = tracks
         .iter()
         .flat_map(|t| t.truth_deg.iter().copied())
@@ -276,6 +321,14 @@ pub fn table(title: &str, tracks: &[LogTrack], answers: &[Answers]) -> Table {
         count: all.len(),
         cells: answers.iter().map(|a| cell(a, &truth, &all)).collect(),
     });
+    if let Some(m) = moved {
+        let after: Vec<usize> = (0..truth.len()).filter(|&i| m[i]).collect();
+        rows.push(Row {
+            label: "after first motion".into(),
+            count: after.len(),
+            cells: answers.iter().map(|a| cell(a, &truth, &after)).collect(),
+        });
+    }
     Table {
         title: title.into(),
         names: answers.iter().map(|a| a.name.clone()).collect(),

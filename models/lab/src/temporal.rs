@@ -1,19 +1,21 @@
-//! Training the temporal model: the learned filter step, taught on its own outputs.
+//! Training the temporal model: corrections of the mode filter, taught on its own runs.
 //!
-//! At inference the network reads its own previous heading (through the per-epoch
-//! inputs, [`ghnet_models::stream::inputs`]) and the cached features of the last `W`
-//! epochs. Back-propagating through that recurrence over whole drives is what this
-//! avoids: each training epoch first **runs the current model recurrently** over every
-//! training track, exactly as ghnetd would ([`record`]: the same `StreamPredictor`,
-//! history rules and inputs), and records each epoch's inputs, previous heading and how
-//! many window slots were filled. Those recorded priors are then fixed inputs, and the
-//! network learns one filter step from them by ordinary mini-batches (teacher forcing on
-//! its own outputs, refreshed every epoch, so what it learns to correct is the error
-//! process it actually has: no exposure bias beyond one epoch's drift). The first
-//! epochs, when the network's own priors are noise, take the Kalman filter's priors
-//! instead, and a share of tracks keeps them throughout; a small rate of random jumps of
-//! the prior (`p_perturb`) teaches recovery from a confidently wrong heading, which is
-//! what a platform that spun in place leaves behind.
+//! At inference the network reads the mode filter's prepared step
+//! ([`ghnet_models::modes::prepare`], through [`ghnet_models::stream::inputs`]) and the
+//! cached features of the last `W` epochs, and corrects the step. Back-propagating
+//! through that recurrence over whole drives is what this avoids: each training epoch
+//! first **runs the current model recurrently** over every training track, exactly as
+//! ghnetd would ([`record`]: the same `StreamPredictor`, history rules and inputs), and
+//! records each epoch's inputs and prepared step. Those are then fixed inputs, and the
+//! network learns one step's corrections from them by ordinary mini-batches (teacher
+//! forcing on its own outputs, refreshed every epoch). The first recording is the mode
+//! filter alone (the output layer starts at zero). A small rate of perturbations of the
+//! recorded run (`p_perturb`: the previous heading turned by 180° or to a random one,
+//! the labels staying the truth) teaches recovery from a confidently wrong heading.
+//!
+//! The reverse decision learns from the truth (is the vehicle moving backwards?), never
+//! from the model's own priors, so a heading wrong by 180° cannot teach it that "course
+//! opposite the heading" means reversing.
 //!
 //! A mini-batch is `tiles` runs of `tile_len + W − 1` consecutive epochs of one track:
 //! the convolution stack runs once per epoch (features of one epoch feed the `W`
@@ -29,14 +31,15 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use ghnet_models::head::{wrap_rad, Head, KalmanBase};
+use ghnet_models::head::{wrap_rad, Head};
+use ghnet_models::modes::{prepare, ModeParams, SigmaMap, SigmaMaps, Step, StepState};
 use ghnet_models::params::{Arch, ParamSet};
-use ghnet_models::stream::{inputs, kalman_base, Epoch, StepState, StreamPredictor, INPUTS};
+use ghnet_models::stream::{inputs, Epoch, Reset, StreamPredictor, INPUTS};
 use ghnet_models::weights::{ModelKind, ModelMeta, FORMAT};
 use ghnet_models::Model;
 
 use crate::logs::LogTrack;
-use crate::train::{fc_backward, fc_forward, fit_sigma_scale, AdamW, ConvStack, Mode};
+use crate::train::{fc_backward, fc_forward, AdamW, ConvStack, Mode};
 
 /// Hyper-parameters of a temporal training run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -61,14 +64,11 @@ pub struct TemporalConfig {
     pub sigma_weight: f32,
     /// Stop after this many epochs without a better validation MAE.
     pub patience: usize,
-    /// Epochs that learn from the Kalman filter's priors before switching to the
-    /// network's own.
-    pub kf_epochs: usize,
-    /// Share of tracks that keep the Kalman filter's priors afterwards.
-    pub kf_share: f64,
-    /// Probability per epoch of the recorded run that the prior jumps to a random
-    /// heading (its σ unchanged).
+    /// Probability per epoch of the recorded run that the previous heading is perturbed
+    /// (half of the time turned by 180°, else to a random heading).
     pub p_perturb: f64,
+    /// The mode filter's constants.
+    pub modes: ModeParams,
     /// Seed of initialisation, tiling, dropout and perturbations.
     pub seed: u64,
 }
@@ -81,14 +81,13 @@ impl Default for TemporalConfig {
             epochs: 6,
             tiles: 16,
             tile_len: 64,
-            lr: 2e-3,
+            lr: 1e-3,
             weight_decay: 1e-4,
             dropout: 0.1,
             sigma_weight: 0.1,
-            patience: 8,
-            kf_epochs: 2,
-            kf_share: 0.2,
+            patience: 3,
             p_perturb: 0.002,
+            modes: ModeParams::default(),
             seed: 1,
         }
     }
@@ -99,50 +98,67 @@ impl Default for TemporalConfig {
 pub struct Recorded {
     /// The network's per-epoch inputs.
     pub x: Vec<[f32; INPUTS]>,
-    /// Course atan2(v_E, v_N), radians.
-    pub course: Vec<f32>,
-    /// Previous heading the step starts from (the course on a history's first epoch).
-    pub prior: Vec<f32>,
-    /// The Kalman step the network corrects.
-    pub base: Vec<KalmanBase>,
+    /// The mode filter's prepared step.
+    pub step: Vec<Step>,
     /// True heading, degrees.
     pub truth: Vec<f32>,
     /// Window slots holding this history's epochs (1 on a history's first epoch).
     pub filled: Vec<u8>,
-    /// Whether the course is opposite to the true heading, when clear
-    /// ([`crate::loss::reverse_label`]).
+    /// Whether the vehicle moves backwards, when clear ([`crate::loss::reverse_label`]).
     pub reverse: Vec<Option<bool>>,
     /// Start offset of each track; the last entry is the total.
     pub starts: Vec<usize>,
 }
 
-/// Run `model` over `tracks` as a stream, recording what each step saw, with the Kalman
-/// step of `kind` (the model's own kind when `None`: a run of the Kalman filter records
-/// for the temporal model it teaches). With `perturb`, the previous heading jumps to a
-/// random one with that probability per epoch.
+/// The state the step of an epoch started from: the state before it, or what a reset
+/// left of it.
+fn start_state(before: &StepState, reset: Option<Reset>, first: bool) -> StepState {
+    match reset {
+        _ if first => StepState::EMPTY,
+        Some(Reset::Gap) => before.after_gap(),
+        Some(_) => StepState::EMPTY,
+        None => *before,
+    }
+}
+
+/// Turn the previous heading of `h` by 180° or to a random heading, with probability
+/// `p` per epoch.
+fn perturb(h: &mut ghnet_models::History, rng: &mut ChaCha8Rng, p: f64) {
+    if rng.random::<f64>() < p && h.state().has_prior {
+        let mut s = *h.state();
+        s.psi += if rng.random::<bool>() {
+            std::f32::consts::PI
+        } else {
+            rng.random_range(-std::f32::consts::PI..std::f32::consts::PI)
+        };
+        h.set_state(s);
+    }
+}
+
+/// Run `model` over `tracks` as a stream, recording what each step saw. With
+/// `perturb`, the previous heading is perturbed with that probability per epoch.
 pub fn record(
     model: &Arc<Model>,
     tracks: &[LogTrack],
     window: usize,
     max_gap_s: f32,
-    kind: Option<ModelKind>,
-    mut perturb: Option<(&mut ChaCha8Rng, f64)>,
+    mut perturbation: Option<(&mut ChaCha8Rng, f64)>,
 ) -> Recorded {
+    let ModelKind::Temporal {
+        sigma_v_mps, modes, ..
+    } = model.meta().kind
+    else {
+        panic!("recording needs a temporal model")
+    };
     let mut rec = Recorded::default();
     let mut sp = StreamPredictor::new(model.clone());
-    let kind = &kind.unwrap_or(model.meta().kind);
     for t in tracks {
         rec.starts.push(rec.x.len());
         let mut h = sp.history().with_max_gap(max_gap_s as f64);
-        let mut pos = 0usize;
-        let mut t_prev = f64::NAN;
+        let (mut pos, mut t_prev) = (0usize, f64::NAN);
         for i in 0..t.len() {
-            if let Some((rng, p)) = perturb.as_mut() {
-                if rng.random::<f64>() < *p && h.state().has_prior {
-                    let mut s = *h.state();
-                    s.psi += rng.random_range(-std::f32::consts::PI..std::f32::consts::PI);
-                    h.set_state(s);
-                }
+            if let Some((rng, p)) = perturbation.as_mut() {
+                perturb(&mut h, rng, *p);
             }
             let before = *h.state();
             let e = Epoch {
@@ -153,27 +169,20 @@ pub fn record(
             };
             sp.predict(&mut h, &e);
             let fresh = h.last_reset().is_some() || i == 0;
-            let (state, dt) = if fresh {
-                pos = 0;
-                (StepState::EMPTY, 0.0)
-            } else {
-                pos += 1;
-                (before, (e.t_s - t_prev) as f32)
-            };
+            let prev = start_state(&before, h.last_reset(), i == 0);
+            let dt = if fresh { 0.0 } else { (e.t_s - t_prev) as f32 };
+            pos = if fresh { 0 } else { pos + 1 };
             t_prev = e.t_s;
             let acc = if e.speed_acc.is_finite() && e.speed_acc > 0.0 {
                 e.speed_acc
             } else {
                 f32::NAN
             };
-            let course = e.v_east.atan2(e.v_north);
-            let base = kalman_base(kind, &state, e.v_north, e.v_east, dt);
-            rec.base.push(base);
+            let mut st = prev;
+            let step = prepare(&modes, sigma_v_mps, &mut st, e.v_north, e.v_east, acc, dt);
             rec.x
-                .push(inputs(&state, e.v_north, e.v_east, acc, dt, &base));
-            rec.course.push(course);
-            rec.prior
-                .push(if state.has_prior { state.psi } else { course });
+                .push(inputs(&prev, &st, &step, e.v_north, e.v_east, acc, dt));
+            rec.step.push(step);
             rec.truth.push(t.truth_deg[i]);
             rec.reverse.push(crate::loss::reverse_label(
                 e.v_north,
@@ -187,10 +196,30 @@ pub fn record(
     rec
 }
 
-/// Wrapped errors (radians) and raw σ (radians) of `model` streamed over `tracks`.
-pub fn stream_errors(model: &Arc<Model>, tracks: &[LogTrack]) -> (Vec<f32>, Vec<f32>) {
+/// What a streamed run answered, per epoch: wrapped error and reported σ (radians),
+/// and whether the vehicle was known to be a car.
+#[derive(Debug, Clone, Default)]
+pub struct Streamed {
+    /// Wrapped error, radians.
+    pub err: Vec<f32>,
+    /// Reported σ, radians.
+    pub sigma: Vec<f32>,
+    /// The history knew the vehicle to be a car.
+    pub car: Vec<bool>,
+    /// The epoch moved (its course was measured, [`Step::moving`]).
+    pub moving: Vec<bool>,
+}
+
+/// Whether the epoch between states `a` and `b` moved: the clock of time stopped
+/// restarted (a history's first epoch counts as standing).
+fn moved_now(a: &StepState, b: &StepState) -> bool {
+    b.t_still == 0.0 && a.has_prior && b.has_prior && b.moved
+}
+
+/// Stream `model` over `tracks` (a fresh history per track).
+pub fn stream_errors(model: &Arc<Model>, tracks: &[LogTrack]) -> Streamed {
     let mut sp = StreamPredictor::new(model.clone());
-    let (mut errs, mut sig) = (Vec::new(), Vec::new());
+    let mut out = Streamed::default();
     for t in tracks {
         let mut h = sp.history();
         for i in 0..t.len() {
@@ -200,16 +229,20 @@ pub fn stream_errors(model: &Arc<Model>, tracks: &[LogTrack]) -> (Vec<f32>, Vec<
                 v_east: t.v_east[i],
                 speed_acc: t.speed_acc[i],
             };
+            let before = *h.state();
             let p = sp.predict(&mut h, &e);
-            errs.push(wrap_rad((p.heading_deg - t.truth_deg[i]).to_radians()));
-            // The reported σ over the model's calibration: the raw σ to calibrate.
-            sig.push((p.std_deg / model.meta().sigma_scale).to_radians());
+            out.moving.push(moved_now(&before, h.state()));
+            out.err
+                .push(wrap_rad((p.heading_deg - t.truth_deg[i]).to_radians()));
+            out.sigma.push(p.std_deg.to_radians());
+            out.car.push(h.state().vehicle.car);
         }
     }
-    (errs, sig)
+    out
 }
 
-/// The model file's metadata for a temporal network.
+/// The model file's metadata for a temporal network whose start convention follows
+/// `kf` (its σ_v).
 pub fn temporal_meta(name: &str, arch: Arch, cfg: &TemporalConfig, kf: &Model) -> ModelMeta {
     let ModelKind::Kf {
         q_deg_per_sqrt_s,
@@ -217,7 +250,7 @@ pub fn temporal_meta(name: &str, arch: Arch, cfg: &TemporalConfig, kf: &Model) -
         ..
     } = kf.meta().kind
     else {
-        panic!("the Kalman step comes from a kf model")
+        panic!("the start convention comes from a kf model")
     };
     ModelMeta {
         format: FORMAT.into(),
@@ -236,6 +269,8 @@ pub fn temporal_meta(name: &str, arch: Arch, cfg: &TemporalConfig, kf: &Model) -
             max_gap_s: cfg.max_gap_s,
             q_deg_per_sqrt_s,
             sigma_v_mps,
+            modes: cfg.modes,
+            sigma_map: SigmaMaps::default(),
         },
     }
 }
@@ -357,11 +392,9 @@ fn step(
     let mut dy = [0.0f32; 3];
     for (n, &(_, i, _)) in b.targets.iter().enumerate() {
         let y = [out[(0, n)], out[(1, n)], out[(2, n)]];
-        let (l, _, _) = crate::loss::filter_loss(
+        let (l, _, _) = crate::loss::mode_loss(
             &y,
-            rec.course[i],
-            rec.prior[i],
-            &rec.base[i],
+            &rec.step[i],
             rec.truth[i],
             rec.reverse[i],
             cfg.sigma_weight,
@@ -416,10 +449,12 @@ fn backward(b: &mut Batch, params: &ParamSet, nt: usize, w: usize, c: usize, gra
 pub struct TrainedTemporal {
     /// The model with the best validation MAE (σ calibrated on validation).
     pub model: Model,
-    /// Its epoch.
+    /// Its epoch (0: the mode filter alone, the untrained output layer).
     pub best_epoch: usize,
     /// Its validation MAE, degrees (streamed, on its own outputs).
     pub best_val_mae_deg: f32,
+    /// The mode filter's validation MAE (epoch 0), degrees.
+    pub rules_val_mae_deg: f32,
     /// Epochs run.
     pub epochs_run: usize,
 }
@@ -434,9 +469,38 @@ fn schedule(lr: f32, step: usize, warmup: usize, total: usize) -> f32 {
     }
 }
 
+/// Streamed validation MAE of `params`, degrees.
+fn val_mae(params: &ParamSet, meta: &ModelMeta, val: &[LogTrack]) -> f32 {
+    let model = Arc::new(Model::new(params.clone(), meta.clone()));
+    mean_abs_deg(&stream_errors(&model, val).err)
+}
+
+/// Mini-batches per training epoch (from a recording of the untrained model; the draw of
+/// tile offsets uses a copy of `rng`, so it does not advance it).
+fn steps_per_epoch(
+    params: &ParamSet,
+    meta: &ModelMeta,
+    train: &[LogTrack],
+    cfg: &TemporalConfig,
+    rng: &ChaCha8Rng,
+) -> Result<usize> {
+    let cols = cfg.tile_len + cfg.window - 1;
+    let model = Arc::new(Model::new(params.clone(), meta.clone()));
+    let rec0 = record(&model, train, cfg.window, cfg.max_gap_s, None);
+    let n = tiles(&rec0, cols, cfg.tile_len, &mut rng.clone()).len();
+    if n < cfg.tiles {
+        bail!(
+            "too little training data: fewer than {} runs of {cols} epochs",
+            cfg.tiles
+        );
+    }
+    Ok(n / cfg.tiles)
+}
+
 /// Train (or, with `init`, fine-tune) a temporal model named `name` on `train` tracks,
-/// selecting on streamed validation MAE over `val` tracks. `kf` gives the priors of the
-/// first epochs. `progress` sees (epoch, train loss, validation MAE °, best MAE °).
+/// selecting on streamed validation MAE over `val` tracks (epoch 0, the mode filter
+/// alone or `init`, competes too). `kf` gives the start convention. `progress` sees
+/// (epoch, train loss, validation MAE °, best MAE °).
 pub fn train(
     name: &str,
     train: &[LogTrack],
@@ -451,28 +515,25 @@ pub fn train(
     let mut params = initial_params(init, &arch, cfg, &mut rng)?;
     let cols = cfg.tile_len + cfg.window - 1;
     let meta = temporal_meta(name, arch.clone(), cfg, kf);
-    let kf_rec = record(kf, train, cfg.window, cfg.max_gap_s, Some(meta.kind), None);
-    if tiles(&kf_rec, cols, cfg.tile_len, &mut rng.clone()).len() < cfg.tiles {
-        bail!(
-            "too little training data: fewer than {} runs of {cols} epochs",
-            cfg.tiles
-        );
-    }
+    let steps_per_epoch = steps_per_epoch(&params, &meta, train, cfg, &rng)?;
     let mut batch = Batch::new(&arch, cfg.tiles * cols);
     let mut grads = vec![0.0f32; params.data().len()];
     let mut opt = AdamW::new(&params, cfg.weight_decay);
-    let steps_per_epoch = tiles(&kf_rec, cols, cfg.tile_len, &mut rng.clone()).len() / cfg.tiles;
     let total = steps_per_epoch * cfg.epochs;
-    let (mut best, mut best_epoch, mut best_mae, mut epochs_run) = (None, 0, f32::INFINITY, 0);
-    let mut step_no = 0;
+    let rules_mae = val_mae(&params, &meta, val);
+    progress(0, f32::NAN, rules_mae, rules_mae);
+    let (mut best, mut best_epoch, mut best_mae) = (params.clone(), 0, rules_mae);
+    let (mut epochs_run, mut step_no) = (0, 0);
     for epoch in 1..=cfg.epochs {
         epochs_run = epoch;
-        let rec = if epoch <= cfg.kf_epochs && init.is_none() {
-            kf_rec.clone()
-        } else {
-            let model = Arc::new(Model::new(params.clone(), meta.clone()));
-            own_priors(&model, train, &kf_rec, cfg, &mut rng)
-        };
+        let model = Arc::new(Model::new(params.clone(), meta.clone()));
+        let rec = record(
+            &model,
+            train,
+            cfg.window,
+            cfg.max_gap_s,
+            Some((&mut rng, cfg.p_perturb)),
+        );
         let all = tiles(&rec, cols, cfg.tile_len, &mut rng);
         let mut loss = (0.0f64, 0usize);
         for chunk in all.chunks_exact(cfg.tiles) {
@@ -486,56 +547,165 @@ pub fn train(
             );
             step_no += 1;
         }
-        let model = Arc::new(Model::new(params.clone(), meta.clone()));
-        let (errs, _) = stream_errors(&model, val);
-        let mae = mean_abs_deg(&errs);
+        let mae = val_mae(&params, &meta, val);
         if mae < best_mae {
-            (best, best_epoch, best_mae) = (Some(params.clone()), epoch, mae);
+            (best, best_epoch, best_mae) = (params.clone(), epoch, mae);
         }
         progress(epoch, (loss.0 / loss.1.max(1) as f64) as f32, mae, best_mae);
         if epoch - best_epoch >= cfg.patience {
             break;
         }
     }
+    // σ is calibrated on training and validation tracks together: the tails that set
+    // the 2σ share come from rare events (a direction misread), and 60 tracks alone
+    // leave them to chance. The network's corrections are small against what it was
+    // trained on, so its training errors are nearly its held-out ones.
+    let both: Vec<LogTrack> = train.iter().chain(val).cloned().collect();
     Ok(TrainedTemporal {
-        model: calibrated(best.expect("at least one epoch"), meta, val),
+        model: calibrated(best, meta, &both),
         best_epoch,
         best_val_mae_deg: best_mae,
+        rules_val_mae_deg: rules_mae,
         epochs_run,
     })
 }
 
-/// The model with σ scaled so that 68.3% of its streamed validation errors fall within
-/// 1σ.
-fn calibrated(params: ParamSet, mut meta: ModelMeta, val: &[LogTrack]) -> Model {
+/// The model with its σ maps fitted on its streamed errors over `tracks`.
+fn calibrated(params: ParamSet, mut meta: ModelMeta, tracks: &[LogTrack]) -> Model {
     let raw = Arc::new(Model::new(params.clone(), meta.clone()));
-    let (errs, sig) = stream_errors(&raw, val);
-    meta.sigma_scale = fit_sigma_scale(&errs, &sig);
+    let run = stream_errors(&raw, tracks);
+    let mut maps = SigmaMaps::default();
+    for (car, moving) in [(true, true), (false, true), (true, false), (false, false)] {
+        let (mut e, mut s) = (Vec::new(), Vec::new());
+        for i in (0..run.err.len()).filter(|&i| run.car[i] == car && run.moving[i] == moving) {
+            e.push(run.err[i]);
+            s.push(run.sigma[i]);
+        }
+        let map = fit_sigma_map(&e, &s);
+        let (c1, c2) = coverage(&map, &e, &s);
+        eprintln!(
+            "σ map ({}, {}): within 1σ {:.1}%, 2σ {:.1}% of {} epochs",
+            if car { "cars" } else { "others" },
+            if moving { "moving" } else { "standing" },
+            100.0 * c1,
+            100.0 * c2,
+            e.len()
+        );
+        *maps.map_mut(car, moving) = map;
+    }
+    if let ModelKind::Temporal { sigma_map, .. } = &mut meta.kind {
+        *sigma_map = maps;
+    }
     Model::new(params, meta)
 }
 
-/// The network's own recorded priors (with perturbations), a share of tracks swapped
-/// for the Kalman filter's.
-fn own_priors(
-    model: &Arc<Model>,
-    train: &[LogTrack],
-    kf_rec: &Recorded,
-    cfg: &TemporalConfig,
-    rng: &mut ChaCha8Rng,
-) -> Recorded {
-    let own = record(
-        model,
-        train,
-        cfg.window,
-        cfg.max_gap_s,
-        None,
-        Some((&mut *rng, cfg.p_perturb)),
-    );
-    mix(kf_rec, &own, cfg.kf_share, rng)
+/// Shares within 1σ and 2σ of `errs` under σ map `map` (errors and raw σ in radians;
+/// the uniform σ stays as it is).
+pub fn coverage(map: &SigmaMap, errs: &[f32], sigma: &[f32]) -> (f64, f64) {
+    let (mut c1, mut c2) = (0usize, 0usize);
+    let cap = ghnet_models::head::MAX_STD_DEG.to_radians();
+    for (e, s) in errs.iter().zip(sigma) {
+        let r = if *s >= 0.999 * cap {
+            cap
+        } else {
+            map.apply(s.to_degrees()).to_radians()
+        };
+        c1 += (e.abs() <= r) as usize;
+        c2 += (e.abs() <= 2.0 * r) as usize;
+    }
+    let n = errs.len().max(1) as f64;
+    (c1 as f64 / n, c2 as f64 / n)
+}
+
+/// Share of errors within 1σ the fitted map aims at overall (a Gaussian's is 68.3%;
+/// the bar is 60–76%).
+const TARGET_1SIGMA: f64 = 0.70;
+/// Share within 2σ it must reach overall (the bar is 90%), with a margin.
+const TARGET_2SIGMA: f64 = 0.93;
+
+/// A monotone σ map from (wrapped error, raw σ) pairs in radians: the raw σ split into
+/// [`SIGMA_KNOTS`](ghnet_models::modes::SIGMA_KNOTS) bins of equal count; in each, the
+/// σ that puts a share `a` of the errors within 1σ, raised if needed so that a share
+/// `b` falls within 2σ; made non-decreasing (pool adjacent violators). `(a, b)` are
+/// searched so that overall [`TARGET_2SIGMA`] of the errors fall within 2σ and the
+/// share within 1σ is as near [`TARGET_1SIGMA`] as that allows: heavy tails (a
+/// direction misread costs 180°) make a single Gaussian scale miss one of the two.
+pub fn fit_sigma_map(errs: &[f32], sigma: &[f32]) -> SigmaMap {
+    let mut best = (f64::INFINITY, SigmaMap::default());
+    for ai in 0..=14 {
+        let a = 0.50 + 0.02 * ai as f64;
+        for bi in 0..=10 {
+            let b = 0.86 + 0.012 * bi as f64;
+            let map = binned_map(errs, sigma, a, b);
+            let (c1, c2) = coverage(&map, errs, sigma);
+            let cost = (c1 - TARGET_1SIGMA).abs() + 10.0 * (TARGET_2SIGMA - c2).max(0.0);
+            if cost < best.0 {
+                best = (cost, map);
+            }
+        }
+    }
+    best.1
+}
+
+/// The map of [`fit_sigma_map`] for fixed shares `a` (1σ) and `b` (2σ) per bin.
+fn binned_map(errs: &[f32], sigma: &[f32], a: f64, b: f64) -> SigmaMap {
+    use ghnet_models::modes::SIGMA_KNOTS;
+    let cap = ghnet_models::head::MAX_STD_DEG.to_radians() * 0.999;
+    let mut pairs: Vec<(f32, f32)> = sigma
+        .iter()
+        .zip(errs)
+        .filter(|(s, e)| s.is_finite() && **s < cap && e.is_finite())
+        .map(|(s, e)| (*s, e.abs()))
+        .collect();
+    if pairs.len() < 10 * SIGMA_KNOTS {
+        return SigmaMap::default();
+    }
+    pairs.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let n = pairs.len();
+    let mut map = SigmaMap::default();
+    let mut weights = [0.0f64; SIGMA_KNOTS];
+    for k in 0..SIGMA_KNOTS {
+        let bin = &pairs[k * n / SIGMA_KNOTS..(k + 1) * n / SIGMA_KNOTS];
+        let mut e: Vec<f32> = bin.iter().map(|p| p.1).collect();
+        e.sort_by(f32::total_cmp);
+        let q = |p: f64| e[((p * e.len() as f64) as usize).min(e.len() - 1)];
+        let s = q(a).max(0.5 * q(b)).max(1e-4);
+        map.raw_deg[k] = bin[bin.len() / 2].0.to_degrees();
+        map.reported_deg[k] = s.to_degrees().min(ghnet_models::head::MAX_STD_DEG);
+        weights[k] = bin.len() as f64;
+    }
+    isotonic(&mut map.reported_deg, &weights);
+    for k in 1..SIGMA_KNOTS {
+        // Equal raw knots (a σ that repeats) would make a step; nudge them apart.
+        if map.raw_deg[k] <= map.raw_deg[k - 1] {
+            map.raw_deg[k] = map.raw_deg[k - 1] * 1.0001 + 1e-6;
+        }
+    }
+    map
+}
+
+/// Pool adjacent violators: `y` made non-decreasing, least squares with `w`.
+fn isotonic(y: &mut [f32], w: &[f64]) {
+    let mut blocks: Vec<(f64, f64, usize)> = Vec::new(); // (mean, weight, len)
+    for (v, wt) in y.iter().zip(w) {
+        blocks.push((*v as f64, *wt, 1));
+        while blocks.len() > 1 && blocks[blocks.len() - 2].0 > blocks[blocks.len() - 1].0 {
+            let (m2, w2, l2) = blocks.pop().expect("two blocks");
+            let (m1, w1, l1) = blocks.pop().expect("two blocks");
+            blocks.push(((m1 * w1 + m2 * w2) / (w1 + w2), w1 + w2, l1 + l2));
+        }
+    }
+    let mut i = 0;
+    for (m, _, l) in blocks {
+        for v in &mut y[i..i + l] {
+            *v = m as f32;
+        }
+        i += l;
+    }
 }
 
 /// Weights to start from: `init`'s (fine-tuning), or random ones with a zero output
-/// layer, so that the untrained model is exactly the Kalman filter and training moves
+/// layer, so that the untrained model is exactly the mode filter and training moves
 /// away from it only where that lowers the error.
 fn initial_params(
     init: Option<&Model>,
@@ -546,35 +716,17 @@ fn initial_params(
     Ok(match init {
         Some(m) if m.params().arch() == arch => m.params().clone(),
         Some(m) => bail!(
-            "--init {}: not a temporal model with window {}",
+            "--init {}: not a temporal model with window {} and {INPUTS} inputs",
             m.name(),
             cfg.window
         ),
         None => {
             let mut p = ParamSet::init(arch, |b| rng.random_range(-b..b));
-            p.get_mut("fc4.bias")
-                .copy_from_slice(&crate::loss::initial_bias(&Head::Filter));
+            p.get_mut("fc4.bias").fill(0.0);
             p.get_mut("fc4.weight").fill(0.0);
             p
         }
     })
-}
-
-/// Per track, the Kalman filter's recording with probability `kf_share`, else the
-/// network's.
-fn mix(kf: &Recorded, own: &Recorded, kf_share: f64, rng: &mut ChaCha8Rng) -> Recorded {
-    let mut out = own.clone();
-    for w in kf.starts.windows(2) {
-        if rng.random::<f64>() < kf_share {
-            for i in w[0]..w[1] {
-                out.x[i] = kf.x[i];
-                out.prior[i] = kf.prior[i];
-                out.base[i] = kf.base[i];
-                out.filled[i] = kf.filled[i];
-            }
-        }
-    }
-    out
 }
 
 /// Mean absolute error of radians, in degrees.

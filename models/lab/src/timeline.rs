@@ -36,7 +36,14 @@ impl TemporalRecipe {
     pub fn shipped() -> Self {
         Self {
             name: "ghnet-temporal".into(),
-            data: DriveParams::default(),
+            // 300 drives, 60 of them for validation (the σ maps and the model choice
+            // need many direction changes to be stable) and 60 for test.
+            data: DriveParams {
+                tracks: 300,
+                val_fraction: 0.2,
+                test_fraction: 0.2,
+                ..DriveParams::default()
+            },
             seed: 1,
             train: TemporalConfig::default(),
         }
@@ -160,9 +167,29 @@ pub fn tables(
             answers.extend(streval::run_receiver(&g));
             answers.push(streval::run_model(kf, &g, "kf"));
             answers.push(streval::run_model(model, &g, model.name()));
-            streval::table(&title, &g, &answers)
+            let moved =
+                start_gate(model, kf).map(|(sv, gap)| streval::after_first_motion(&g, sv, gap));
+            streval::table(&title, &g, &answers, moved.as_deref())
         })
         .collect()
+}
+
+/// The start convention's gate (σ_v, gap limit) of a table: the temporal model's own
+/// (the σ_v of the `kf` it was made with), else `kf`'s.
+fn start_gate(model: &Model, kf: &Model) -> Option<(f32, f32)> {
+    [model, kf].iter().find_map(|m| match m.meta().kind {
+        ModelKind::Temporal {
+            sigma_v_mps,
+            max_gap_s,
+            ..
+        }
+        | ModelKind::Kf {
+            sigma_v_mps,
+            max_gap_s,
+            ..
+        } => Some((sigma_v_mps, max_gap_s)),
+        ModelKind::Epoch => None,
+    })
 }
 
 /// Read several logs with truth and split them by time for training.

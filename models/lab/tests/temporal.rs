@@ -26,7 +26,6 @@ fn tiny_config(seed: u64) -> TemporalConfig {
         epochs: 2,
         tiles: 4,
         tile_len: 16,
-        kf_epochs: 1,
         seed,
         ..TemporalConfig::default()
     }

@@ -1,0 +1,605 @@
+//! The mode filter: the deterministic half of the temporal model, a circular Kalman
+//! filter that knows how vehicles move.
+//!
+//! A plain Kalman filter on atan2 treats every course as the heading. Vehicles break
+//! that in three ways, and each has a physical rule here:
+//!
+//! * **Cars back up.** After a stop, a car moves off either along its held heading or
+//!   opposite to it; opposite means reversing (course = heading + 180°), not a 180° turn.
+//!   The filter keeps a *mode* (forward or reversing) and measures `course + π·mode`.
+//!   Two escapes keep a wrong mode from lasting: a car never reverses at sustained speed
+//!   (above `escape_speed`, the mode ends and the heading turns by 180°), and a vehicle
+//!   that has not yet shown car-like speed has no reverse mode at all (next point).
+//! * **Cars do not turn in place; platforms do.** A vehicle counts as a car once it has
+//!   driven above `fast_speed` for `fast_secs` and `FAST_EPOCHS` epochs (kept across fix gaps: it is the same
+//!   vehicle). Until then it is treated as a platform that turns in place: its heading
+//!   random-walks while it stands (`q_tip`), there is no reverse mode, and slow motion is
+//!   trusted. A car's heading random-walks only with distance driven, as much as its
+//!   steering allows (`k_max`, `a_lat`), so a stopped car holds its heading exactly.
+//! * **Receivers lie.** The measurement σ is the receiver's noise over the speed, with
+//!   the noise taken as the larger of the reported sAcc and a running estimate from the
+//!   speeds the receiver reports when slow (a low quantile: a stopped vehicle's speed is
+//!   pure noise). At speed, a velocity change a car cannot make in `dt` (over
+//!   `a_max·dt`) is a glitch and is not used (at most `max_skips` in a row).
+//!
+//! Until the history's first epoch that the tuned `kf` would use (its measurement gate
+//! `σ_v/ŝ` below the uniform σ), the model answers exactly what `kf` answers: the first
+//! epoch's course with the uniform σ. Nothing knows a parked car's heading; both share
+//! one convention there, so comparisons measure what happens after the first motion.
+//!
+//! The network ([`crate::stream`]) corrects this filter: `y₀` the gain in log-odds,
+//! `y₁` the reverse decision as a logit around the rule's (`±REVERSE_PRIOR`), `y₂` the
+//! reported `log σ`. Zero outputs are exactly the mode filter.
+
+use serde::{Deserialize, Serialize};
+
+use crate::head::{wrap_rad, MAX_STD_DEG};
+
+/// Logit the rule's reverse decision contributes (`+` reversing, `−` forward): the
+/// network overrides the rule only when its own logit outweighs this.
+pub const REVERSE_PRIOR: f32 = 4.0;
+
+/// Fewest epochs above `fast_speed` that make a vehicle a car.
+pub const FAST_EPOCHS: u16 = 5;
+
+/// The mode filter's constants (stored in the model's metadata).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ModeParams {
+    /// Heading random walk of a standing car, °/√s (small: cars do not turn in place).
+    pub q_still_deg: f32,
+    /// Heading random walk of a platform that turns in place, °/√s.
+    pub q_tip_deg: f32,
+    /// Largest path curvature a car steers, 1/m (the heading noise at low speed).
+    pub k_max: f32,
+    /// Largest lateral acceleration, m/s² (the heading noise at speed: `a_lat/ŝ`).
+    pub a_lat: f32,
+    /// Smallest velocity noise σ, m/s.
+    pub sigma_floor: f32,
+    /// A car's velocity noise σ when the receiver reports no sAcc (NMEA), m/s.
+    pub sigma_none: f32,
+    /// Multiplier on sAcc for a car's σ.
+    pub acc_k: f32,
+    /// Multiplier on the running noise estimate for a car's σ.
+    pub noise_k: f32,
+    /// Quantile of slow speeds the noise estimate tracks.
+    pub noise_quantile: f32,
+    /// Step of the noise estimate (log units per epoch).
+    pub noise_rate: f32,
+    /// Speeds below this (m/s) feed the noise estimate.
+    pub noise_speed: f32,
+    /// Multiplier on sAcc for a platform's σ.
+    pub tip_acc_k: f32,
+    /// A platform's σ without sAcc, m/s.
+    pub tip_sigma_none: f32,
+    /// An epoch moves when its measurement σ (radians) is below this.
+    pub moving_r: f32,
+    /// A departure after a stop this far (°) from the held heading changes direction.
+    pub flip_stop_deg: f32,
+    /// Without a stop, a course this far (°) from the heading changes direction.
+    pub flip_deg: f32,
+    /// Direction changes happen below this speed, m/s.
+    pub flip_speed: f32,
+    /// The heading must be this sure (°, 1σ) for a direction change.
+    pub confident_deg: f32,
+    /// Cars do not reverse above this speed (m/s): the reverse mode ends there.
+    pub escape_speed: f32,
+    /// Driving above this speed (m/s) for `fast_secs` makes a vehicle a car.
+    pub fast_speed: f32,
+    /// Seconds above `fast_speed` that make a vehicle a car.
+    pub fast_secs: f32,
+    /// Glitch gate: only above this speed, m/s.
+    pub gate_speed: f32,
+    /// Glitch gate: largest plausible acceleration, m/s².
+    pub a_max: f32,
+    /// Glitch gate: at most this many epochs ignored in a row.
+    pub max_skips: u8,
+}
+
+impl Default for ModeParams {
+    fn default() -> Self {
+        Self {
+            q_still_deg: 1.0,
+            q_tip_deg: 90.0,
+            k_max: 0.2,
+            a_lat: 3.0,
+            sigma_floor: 0.03,
+            sigma_none: 0.1,
+            acc_k: 1.0,
+            noise_k: 1.5,
+            noise_quantile: 0.2,
+            noise_rate: 0.05,
+            noise_speed: 0.8,
+            tip_acc_k: 1.0,
+            tip_sigma_none: 0.1,
+            moving_r: 0.35,
+            flip_stop_deg: 90.0,
+            flip_deg: 135.0,
+            flip_speed: 2.0,
+            confident_deg: 30.0,
+            escape_speed: 2.0,
+            fast_speed: 2.5,
+            fast_secs: 5.0,
+            gate_speed: 3.0,
+            a_max: 4.0,
+            max_skips: 3,
+        }
+    }
+}
+
+impl ModeParams {
+    /// Rayleigh quantile factor: the `noise_quantile` quantile of a stopped receiver's
+    /// speed is this times its per-axis σ.
+    fn quantile_factor(&self) -> f32 {
+        (-2.0 * (1.0 - self.noise_quantile).ln()).sqrt()
+    }
+}
+
+/// What one history knows about the vehicle and its receiver: kept across fix gaps
+/// (the same vehicle), cleared by other resets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vehicle {
+    /// Driven above `fast_speed` for `fast_secs`: a car (reverses, never turns in place).
+    pub car: bool,
+    /// Running low quantile of slow speeds, m/s (NaN until the first epoch).
+    pub noise: f32,
+}
+
+impl Vehicle {
+    /// Nothing known yet.
+    pub const UNKNOWN: Vehicle = Vehicle {
+        car: false,
+        noise: f32::NAN,
+    };
+}
+
+/// The recurrent state one step reads and writes. Public for the lab's training, which
+/// records it from recurrent runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepState {
+    /// Previous heading, radians (not wrapped).
+    pub psi: f32,
+    /// Previous `log σ` of the filter (σ in radians; the prior variance is `σ² + q²dt`).
+    pub log_sigma: f32,
+    /// Whether `psi` exists (false on the first epoch of a history).
+    pub has_prior: bool,
+    /// Seconds since the last moving epoch.
+    pub t_still: f32,
+    /// Seconds in the current mode while moving.
+    pub t_mode: f32,
+    /// Reversing (course = heading + 180°).
+    pub reverse: bool,
+    /// Whether the history has reached its first epoch the tuned `kf` would use.
+    pub moved: bool,
+    /// Seconds continuously above `fast_speed`.
+    pub t_fast: f32,
+    /// Epochs continuously above `fast_speed`.
+    pub n_fast: u16,
+    /// Previous epoch's speed, m/s.
+    pub prev_speed: f32,
+    /// Last velocity the filter used (north, east), for the glitch gate; NaN when none.
+    pub prev_v: [f32; 2],
+    /// Epochs ignored as glitches in a row.
+    pub skips: u8,
+    /// Variance (radians²) a misread direction adds to the heading: `p(1−p)·π²` of the
+    /// last moving epoch's reverse decision, kept through stops (the held heading came
+    /// from it).
+    pub flip_var: f32,
+    /// The vehicle and its receiver.
+    pub vehicle: Vehicle,
+}
+
+impl StepState {
+    /// The state of an empty history.
+    pub const EMPTY: StepState = StepState {
+        psi: 0.0,
+        log_sigma: 0.0,
+        has_prior: false,
+        t_still: 0.0,
+        t_mode: 0.0,
+        reverse: false,
+        moved: false,
+        t_fast: 0.0,
+        n_fast: 0,
+        prev_speed: 0.0,
+        prev_v: [f32::NAN; 2],
+        skips: 0,
+        flip_var: 0.0,
+        vehicle: Vehicle::UNKNOWN,
+    };
+
+    /// An empty history that keeps what it knew about the vehicle (after a fix gap).
+    pub fn after_gap(&self) -> StepState {
+        StepState {
+            vehicle: self.vehicle,
+            ..Self::EMPTY
+        }
+    }
+}
+
+/// One epoch's filter step before the network's corrections: what [`commit`] needs and
+/// what the network's inputs describe.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Step {
+    /// Course atan2(v_E, v_N), radians.
+    pub course: f32,
+    /// Heading the step starts from (after the rules' direction changes), radians.
+    pub prior: f32,
+    /// Prior variance, radians².
+    pub p: f32,
+    /// Measurement variance, radians² (the uniform cap when the velocity is noise).
+    pub r2: f32,
+    /// Kalman gain `P/(P + R²)`; 0 when the measurement carries nothing or is a glitch.
+    pub k: f32,
+    /// The rule's mode for this epoch.
+    pub rule_reverse: bool,
+    /// The epoch moves (measurement σ under `moving_r`).
+    pub moving: bool,
+    /// Before the first motion: answer the prior with the uniform σ (the `kf` convention).
+    pub hold: bool,
+    /// The glitch gate rejected this epoch.
+    pub glitch: bool,
+    /// Velocity noise σ used, m/s.
+    pub sigma_v: f32,
+    /// Speed, m/s.
+    pub speed: f32,
+}
+
+fn cap2() -> f32 {
+    let c = MAX_STD_DEG.to_radians();
+    c * c
+}
+
+/// Speed corrected for noise (`√(|v|² − 2σ²)`, 0 inside the noise) and the course's σ
+/// `σ/ŝ` capped at the uniform σ.
+fn measurement(speed: f32, sigma: f32) -> (f32, f32) {
+    let cap = MAX_STD_DEG.to_radians();
+    let s2 = speed * speed - 2.0 * sigma * sigma;
+    if s2 > 0.0 {
+        let shat = s2.sqrt();
+        (shat, (sigma / shat).min(cap))
+    } else {
+        (0.0, cap)
+    }
+}
+
+/// Track the low quantile of slow speeds (a stopped receiver's noise).
+fn update_noise(mp: &ModeParams, v: &mut Vehicle, speed: f32, acc: f32) {
+    if !v.noise.is_finite() {
+        let init = if acc.is_finite() { acc } else { 0.1 };
+        v.noise = init * mp.quantile_factor();
+    }
+    if speed < mp.noise_speed {
+        let below = if speed < v.noise { 1.0 } else { 0.0 };
+        let tau = mp.noise_quantile;
+        v.noise *= (mp.noise_rate * (tau - below) / tau.max(1.0 - tau)).exp();
+    }
+}
+
+/// The velocity noise σ (m/s) of this epoch.
+fn sigma_v(mp: &ModeParams, v: &Vehicle, acc: f32) -> f32 {
+    let known = acc.is_finite();
+    if !v.car {
+        return if known {
+            (mp.tip_acc_k * acc).max(mp.sigma_floor)
+        } else {
+            mp.tip_sigma_none
+        };
+    }
+    let est = mp.noise_k * v.noise / mp.quantile_factor();
+    let rep = if known { mp.acc_k * acc } else { mp.sigma_none };
+    est.max(rep).max(mp.sigma_floor)
+}
+
+/// The direction rules on a moving epoch: a car's departure against a sure heading
+/// changes its mode, sustained speed ends a reversal (the heading was wrong by 180°) and
+/// makes the vehicle a car.
+fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32, p: f32, dt: f32) {
+    let pi = std::f32::consts::PI;
+    let z = course + if st.reverse { pi } else { 0.0 };
+    let d = wrap_rad(z - st.psi);
+    let sure = p < mp.confident_deg.to_radians().powi(2);
+    let limit = if st.t_still > 0.0 {
+        mp.flip_stop_deg
+    } else {
+        mp.flip_deg
+    };
+    if sure && st.vehicle.car && d.cos() < limit.to_radians().cos() && speed < mp.flip_speed {
+        st.reverse = !st.reverse;
+        st.t_mode = 0.0;
+    }
+    let fast = speed > mp.escape_speed && st.prev_speed > 0.7 * mp.escape_speed && dt <= 2.0;
+    (st.t_fast, st.n_fast) = if speed > mp.fast_speed {
+        (st.t_fast + dt, st.n_fast.saturating_add(1))
+    } else {
+        (0.0, 0)
+    };
+    if fast && st.reverse {
+        st.reverse = false;
+        st.t_mode = 0.0;
+        st.psi += pi;
+    }
+    // Several epochs as well as seconds: a run of glitches under poor sky lasts a few
+    // epochs and must not make a slow platform a car.
+    if st.t_fast >= mp.fast_secs && st.n_fast >= FAST_EPOCHS {
+        st.vehicle.car = true;
+    }
+}
+
+/// Whether the glitch gate rejects this velocity: at speed, a change from the last used
+/// velocity that a car cannot make in `dt`.
+fn glitch(
+    mp: &ModeParams,
+    st: &mut StepState,
+    vn: f32,
+    ve: f32,
+    speed: f32,
+    sig: f32,
+    dt: f32,
+) -> bool {
+    if !(st.prev_v[0].is_finite() && speed > mp.gate_speed && dt > 0.0) {
+        return false;
+    }
+    let dv = (vn - st.prev_v[0]).hypot(ve - st.prev_v[1]);
+    if dv > mp.a_max * dt + 3.0 * sig && st.skips < mp.max_skips {
+        st.skips += 1;
+        true
+    } else {
+        st.skips = 0;
+        false
+    }
+}
+
+/// The first half of an epoch: time, noise, the rules; mutates the non-heading parts of
+/// `st` and returns the step the network corrects. `kf_sigma_v` is the tuned `kf`'s σ_v
+/// (the start convention); `acc` is sAcc or NaN.
+pub fn prepare(
+    mp: &ModeParams,
+    kf_sigma_v: f32,
+    st: &mut StepState,
+    vn: f32,
+    ve: f32,
+    acc: f32,
+    dt: f32,
+) -> Step {
+    let speed = vn.hypot(ve);
+    let course = ve.atan2(vn);
+    update_noise(mp, &mut st.vehicle, speed, acc);
+    let cap2 = cap2();
+    let mut step = Step {
+        course,
+        prior: if st.has_prior { st.psi } else { course },
+        p: cap2,
+        r2: cap2,
+        k: 0.0,
+        rule_reverse: false,
+        moving: false,
+        hold: true,
+        glitch: false,
+        sigma_v: f32::NAN,
+        speed,
+    };
+    if !st.has_prior {
+        return step;
+    }
+    if !st.moved {
+        let (_, r) = measurement(speed, kf_sigma_v);
+        if r >= MAX_STD_DEG.to_radians() {
+            return step;
+        }
+        st.moved = true;
+    }
+    step.hold = false;
+    let sig = sigma_v(mp, &st.vehicle, acc);
+    let (shat, r) = measurement(speed, sig);
+    let q = if st.vehicle.car {
+        mp.q_still_deg
+    } else {
+        mp.q_tip_deg
+    }
+    .to_radians();
+    let w = mp.k_max * shat.min(mp.a_lat / (mp.k_max * shat.max(1e-3)));
+    let p = ((2.0 * st.log_sigma).exp() + (q * q + w * w) * dt).min(cap2);
+    let moving = r < mp.moving_r;
+    if moving {
+        direction_rules(mp, st, course, speed, p, dt);
+    }
+    step.glitch = glitch(mp, st, vn, ve, speed, sig, dt);
+    step.prior = st.psi;
+    step.p = p;
+    step.r2 = r * r;
+    step.k = if step.glitch || step.r2 >= cap2 * 0.999 {
+        0.0
+    } else {
+        p / (p + step.r2)
+    };
+    step.rule_reverse = st.reverse;
+    step.moving = moving;
+    step.sigma_v = sig;
+    step
+}
+
+/// The gain from the Kalman gain `k` and the network's log-odds correction `y`:
+/// `k·eʸ / (1 − k + k·eʸ)`; exactly 0 when `k` is 0 (a stop stays held) and `k` at `y = 0`.
+#[inline]
+pub fn corrected_gain(k: f32, y: f32) -> f32 {
+    if k <= 0.0 {
+        return 0.0;
+    }
+    let e = y.clamp(-30.0, 30.0).exp();
+    k * e / (1.0 - k + k * e)
+}
+
+/// The reverse logit: the rule's `±REVERSE_PRIOR` plus the network's `y`.
+#[inline]
+pub fn reverse_logit(rule_reverse: bool, y: f32) -> f32 {
+    if rule_reverse {
+        REVERSE_PRIOR + y
+    } else {
+        y - REVERSE_PRIOR
+    }
+}
+
+/// What [`commit`] decided.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decision {
+    /// Heading, radians (not wrapped).
+    pub psi: f32,
+    /// The filter's `log σ` after the step (σ in radians).
+    pub log_sigma: f32,
+    /// Probability of reversing (the logistic of the reverse logit).
+    pub p_reverse: f32,
+    /// Gain used (1 after a jump).
+    pub gain: f32,
+}
+
+/// The second half of an epoch: the network's outputs `y` (gain, reverse, σ) applied to
+/// `step`, the heading state of `st` updated. Zero outputs are the mode filter itself.
+pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
+    let cap = MAX_STD_DEG.to_radians();
+    let logit = reverse_logit(step.rule_reverse, y[1]);
+    let p_reverse = 1.0 / (1.0 + (-logit).exp());
+    let (psi, var, gain) = if step.hold {
+        (step.prior, cap * cap, 0.0)
+    } else {
+        let reverse = logit > 0.0;
+        let z = step.course + if reverse { std::f32::consts::PI } else { 0.0 };
+        let d = wrap_rad(z - step.prior);
+        st.t_mode = if reverse != st.reverse {
+            0.0
+        } else {
+            st.t_mode
+        };
+        st.reverse = reverse;
+        // Overruling the rule never averages across a half turn: the heading jumps.
+        if reverse != step.rule_reverse
+            && step.moving
+            && !step.glitch
+            && d.abs() > 0.5 * std::f32::consts::PI
+        {
+            (z, step.r2, 1.0)
+        } else {
+            let g = corrected_gain(step.k, y[0]);
+            let v = (1.0 - g) * (1.0 - g) * step.p + g * g * step.r2;
+            (step.prior + g * d, v, g)
+        }
+    };
+    let log_sigma = 0.5 * var.max(1e-12).ln();
+    advance_clocks(st, step, dt, gain, p_reverse);
+    st.psi = wrap_rad(psi);
+    st.log_sigma = log_sigma.min(cap.ln());
+    st.has_prior = true;
+    Decision {
+        psi,
+        log_sigma: st.log_sigma,
+        p_reverse,
+        gain,
+    }
+}
+
+fn advance_clocks(st: &mut StepState, step: &Step, dt: f32, gain: f32, p_reverse: f32) {
+    st.t_still = if step.moving { 0.0 } else { st.t_still + dt };
+    if step.moving && !step.hold {
+        st.t_mode += dt;
+        st.flip_var = p_reverse * (1.0 - p_reverse) * std::f32::consts::PI.powi(2);
+    }
+    st.prev_speed = step.speed;
+    if gain > 0.0 || !st.prev_v[0].is_finite() {
+        let (s, c) = step.course.sin_cos();
+        st.prev_v = [step.speed * c, step.speed * s];
+    }
+}
+
+/// Knots of a [`SigmaMap`].
+pub const SIGMA_KNOTS: usize = 12;
+
+/// A monotone map from the filter's raw σ to the reported σ, both in degrees, linear
+/// in log σ between knots and constant beyond them: fitted on validation tracks so that
+/// the reported σ covers the errors as a σ should (a share within 1σ near 68%, at
+/// least 90% within 2σ), which one scale factor cannot do for heavy-tailed errors.
+/// All-zero knots (the default) are the identity.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SigmaMap {
+    /// Raw σ at the knots, degrees, increasing.
+    pub raw_deg: [f32; SIGMA_KNOTS],
+    /// Reported σ at the knots, degrees, non-decreasing.
+    pub reported_deg: [f32; SIGMA_KNOTS],
+}
+
+impl SigmaMap {
+    /// Whether this is the identity (no knots).
+    pub fn is_identity(&self) -> bool {
+        self.raw_deg.iter().all(|&v| v == 0.0)
+    }
+
+    /// The reported σ (degrees, at most the uniform σ) for a raw σ in degrees.
+    pub fn apply(&self, raw_deg: f32) -> f32 {
+        if self.is_identity() || !raw_deg.is_finite() {
+            return raw_deg.min(MAX_STD_DEG);
+        }
+        let (x, y) = (&self.raw_deg, &self.reported_deg);
+        let out = if raw_deg <= x[0] {
+            y[0]
+        } else if raw_deg >= x[SIGMA_KNOTS - 1] {
+            y[SIGMA_KNOTS - 1]
+        } else {
+            let i = x
+                .partition_point(|&v| v <= raw_deg)
+                .clamp(1, SIGMA_KNOTS - 1);
+            let (l0, l1) = (x[i - 1].ln(), x[i].ln());
+            let t = if l1 > l0 {
+                (raw_deg.ln() - l0) / (l1 - l0)
+            } else {
+                1.0
+            };
+            y[i - 1] + t * (y[i] - y[i - 1])
+        };
+        out.min(MAX_STD_DEG)
+    }
+}
+
+/// The σ maps of the two vehicle classes, moving and standing: errors of a car
+/// (reverses, holds its heading when stopped) and of a vehicle not yet known to be one
+/// (perhaps turning in place) grow differently with the filter's σ, and a held heading
+/// fails differently (drift, a misread direction) from a followed course (noise,
+/// glitches).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SigmaMaps {
+    /// Cars, moving epochs.
+    pub car: SigmaMap,
+    /// Other vehicles, moving epochs.
+    pub platform: SigmaMap,
+    /// Cars, standing epochs.
+    pub car_still: SigmaMap,
+    /// Other vehicles, standing epochs.
+    pub platform_still: SigmaMap,
+}
+
+impl SigmaMaps {
+    /// The map of a class (`car`) and state (`moving`).
+    pub fn map(&self, car: bool, moving: bool) -> &SigmaMap {
+        match (car, moving) {
+            (true, true) => &self.car,
+            (false, true) => &self.platform,
+            (true, false) => &self.car_still,
+            (false, false) => &self.platform_still,
+        }
+    }
+
+    /// The map of a class and state, to fit.
+    pub fn map_mut(&mut self, car: bool, moving: bool) -> &mut SigmaMap {
+        match (car, moving) {
+            (true, true) => &mut self.car,
+            (false, true) => &mut self.platform,
+            (true, false) => &mut self.car_still,
+            (false, false) => &mut self.platform_still,
+        }
+    }
+
+    /// The reported σ (degrees) for a raw σ in degrees.
+    pub fn apply(&self, car: bool, moving: bool, raw_deg: f32) -> f32 {
+        self.map(car, moving).apply(raw_deg)
+    }
+}
