@@ -17,7 +17,8 @@
 //! - [`bayes`]: the Bayes-optimal estimate for the S1 prior (the physical limit).
 //! - [`eval`]: per-speed-bin tables, baselines and σ calibration; [`plot`]: the MAE plot.
 //! - [`recipes`]: how the shipped models are trained and judged.
-//! - [`replay`]: streaming CSV inference for offline replay of logs (`ghnet infer`).
+//! - [`replay`]: streaming CSV inference for offline replay of logs (`ghnet infer`);
+//!   [`receiver_log`]: UBX, NMEA and gpsd receiver logs as its input.
 //!
 //! This crate knows nothing about IPC: the daemon wires the models to the transports.
 #![warn(missing_docs)]
@@ -28,6 +29,7 @@ pub mod eval;
 pub mod logs;
 pub mod loss;
 pub mod plot;
+pub mod receiver_log;
 pub mod recipes;
 pub mod replay;
 pub mod sim;

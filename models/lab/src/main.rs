@@ -3,7 +3,7 @@
 //! A thin layer over the `ghnet_models` library; every subcommand's `--help` documents it.
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter};
+use std::io::{BufReader, BufWriter, Read};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -13,7 +13,7 @@ use clap::{Parser, Subcommand};
 
 use ghnet_lab::recipes::{self, DataSpec, Recipe};
 use ghnet_lab::sim::{self, RealisticParams, S1Params};
-use ghnet_lab::{eval, plot, replay, train};
+use ghnet_lab::{eval, plot, receiver_log, replay, train};
 use ghnet_models::simd::Kernel;
 use ghnet_models::weights::{ModelMeta, FORMAT};
 use ghnet_models::{Model, Predictor, DEFAULT_MODEL};
@@ -97,12 +97,17 @@ enum Cmd {
         /// Built-in model name or safetensors path.
         #[arg(long, default_value = DEFAULT_MODEL)]
         model: String,
-        /// Input CSV with `v_north` and `v_east` columns (m/s).
+        /// Input: CSV with `v_north` and `v_east` columns (m/s), or a receiver log
+        /// (u-blox UBX, NMEA, gpsd JSON), one row per epoch with the receiver's own
+        /// course beside ghnet's heading.
         #[arg(long)]
         input: PathBuf,
         /// Output CSV (input columns plus heading_deg, heading_std_deg, status).
         #[arg(long)]
         output: PathBuf,
+        /// Input format; detected when not given (CSV when its header names v_north).
+        #[arg(long, value_enum)]
+        format: Option<receiver_log::InputFormat>,
     },
     /// Write a model (built-in or file) to a safetensors file.
     Export {
@@ -260,7 +265,8 @@ fn run(cli: Cli) -> Result<()> {
             model,
             input,
             output,
-        } => infer(&load(&model)?, &input, &output),
+            format,
+        } => infer(&load(&model)?, &input, &output, format),
         Cmd::Export { model, output } => {
             let m = load(&model)?;
             std::fs::write(&output, m.to_safetensors())
@@ -397,21 +403,41 @@ fn eval_epoch(model: &Arc<Model>, out_dir: Option<PathBuf>) -> Result<()> {
 }
 
 /// `ghnet infer`: answer every row of a CSV log.
-fn infer(model: &Arc<Model>, input: &std::path::Path, output: &std::path::Path) -> Result<()> {
-    let inp =
-        File::open(input).with_context(|| format!("cannot open input {}", input.display()))?;
+fn infer(
+    model: &Arc<Model>,
+    input: &std::path::Path,
+    output: &std::path::Path,
+    format: Option<receiver_log::InputFormat>,
+) -> Result<()> {
+    let open =
+        || File::open(input).with_context(|| format!("cannot open input {}", input.display()));
+    // The first 64 KiB tell a CSV header from a receiver log; a CSV then streams.
+    let mut head = Vec::new();
+    open()?.take(1 << 16).read_to_end(&mut head)?;
+    let receiver = match receiver_log::convert(&head, format)? {
+        None => None,
+        Some(_) => {
+            let bytes =
+                std::fs::read(input).with_context(|| format!("reading {}", input.display()))?;
+            receiver_log::convert(&bytes, format)?
+        }
+    };
+    let inp: Box<dyn Read> = match &receiver {
+        Some(c) => Box::new(std::io::Cursor::new(c.csv.as_slice())),
+        None => Box::new(BufReader::with_capacity(1 << 16, open()?)),
+    };
     let out = File::create(output)
         .with_context(|| format!("cannot create output {}", output.display()))?;
-    let (inp, out) = (
-        BufReader::with_capacity(1 << 16, inp),
-        BufWriter::with_capacity(1 << 16, out),
-    );
+    let out = BufWriter::with_capacity(1 << 16, out);
     let s = if model.is_stateful() {
         replay::run(&mut replay::Streams::new(model.clone()), inp, out)
     } else {
         replay::run(&mut Predictor::new(model.clone()), inp, out)
     }
     .with_context(|| format!("{}", input.display()))?;
+    if let Some(c) = &receiver {
+        eprintln!("{} log: {}", c.format, c.stats);
+    }
     let first = s
         .first_invalid_row
         .map(|r| format!(" (first at row {r})"))
