@@ -486,6 +486,8 @@ impl StreamPredictor {
             f32::NAN
         };
         let dt = h.step_time(e.t_s);
+        // Only a heading from earlier epochs can be held: a first epoch is never `Held`.
+        let had_heading = h.state.has_prior;
         let model = self.model.clone();
         let (psi, std_deg) = match model.engine() {
             Engine::Epoch(net) => {
@@ -512,7 +514,7 @@ impl StreamPredictor {
                 self.filter(h, &base, vn, ve, acc, dt, model.meta().sigma_scale)
             }
         };
-        self.finish(psi, std_deg, vn, ve, speed, acc)
+        self.finish(psi, std_deg, vn, ve, speed, acc, had_heading)
     }
 
     /// The filter step from outputs `self.y`: heading (radians) and reported σ
@@ -538,8 +540,19 @@ impl StreamPredictor {
         (psi, std.min(MAX_STD_DEG))
     }
 
-    /// Heading in [0, 360), σ, status: `Held` for a stopped vehicle with a heading.
-    fn finish(&self, psi: f32, std: f32, vn: f32, ve: f32, speed: f32, acc: f32) -> Prediction {
+    /// Heading in [0, 360), σ, status: `Held` for a stopped vehicle with a heading from
+    /// earlier epochs (`had_heading`).
+    #[allow(clippy::too_many_arguments)] // one epoch's numbers
+    fn finish(
+        &self,
+        psi: f32,
+        std: f32,
+        vn: f32,
+        ve: f32,
+        speed: f32,
+        acc: f32,
+        had_heading: bool,
+    ) -> Prediction {
         let deg = psi.to_degrees().rem_euclid(360.0);
         let deg = if deg >= 360.0 { 0.0 } else { deg };
         let held_speed = if acc.is_finite() {
@@ -548,7 +561,7 @@ impl StreamPredictor {
             self.policy.stationary_speed
         };
         let status = if speed < held_speed {
-            if std < 0.99 * MAX_STD_DEG {
+            if had_heading && std < 0.99 * MAX_STD_DEG {
                 Status::Held
             } else {
                 Status::Stationary
@@ -780,6 +793,9 @@ mod tests {
             let b = p.predict(0.0, 3.0);
             assert_eq!(a, b);
             assert_ne!(a.status, Status::Held);
+            // Within 3 sAcc of zero but with a confident σ: stopped, yet nothing to hold.
+            let first = p.predict_with_accuracy(65.0, 0.0, 29.0);
+            assert_eq!(first.status, Status::Stationary, "{first:?}");
             let mut out = [Prediction::INVALID; 2];
             p.predict_batch(&[0.0, f32::NAN], &[3.0, 1.0], &mut out);
             assert_eq!(out[0], a);
