@@ -10,16 +10,23 @@ use ghnet_client::{
     VelocitySample, VelocitySubscriber, SERVICE_SETTINGS,
 };
 
+/// A velocity publisher and subscriber on source `gnss0` in a namespace of their own
+/// (keep the namespace alive as long as the ports).
+fn velocity_pair(tag: &str) -> (TestNamespace, VelocityPublisher, VelocitySubscriber) {
+    let ns = TestNamespace::new(tag);
+    let ipc = ns.ipc();
+    let publisher = VelocityPublisher::new(&ipc, "gnss0").unwrap();
+    let subscriber = VelocitySubscriber::new(&ipc, "gnss0").unwrap();
+    (ns, publisher, subscriber)
+}
+
 fn sample(seq: u64) -> VelocitySample {
     VelocitySample::new(1_000 + seq, seq, seq as f32, -(seq as f32), 0.5)
 }
 
 #[test]
 fn burst_arrives_complete_and_in_order() {
-    let ns = TestNamespace::new("burst");
-    let ipc = ns.ipc();
-    let publisher = VelocityPublisher::new(&ipc, "gnss0").unwrap();
-    let subscriber = VelocitySubscriber::new(&ipc, "gnss0").unwrap();
+    let (_ns, publisher, subscriber) = velocity_pair("burst");
     assert_eq!(publisher.subscriber_count(), 1);
     assert_eq!(subscriber.publisher_count(), 1);
 
@@ -41,10 +48,7 @@ fn burst_arrives_complete_and_in_order() {
 
 #[test]
 fn overflow_drops_oldest_never_blocks_publisher() {
-    let ns = TestNamespace::new("overflow");
-    let ipc = ns.ipc();
-    let publisher = VelocityPublisher::new(&ipc, "gnss0").unwrap();
-    let subscriber = VelocitySubscriber::new(&ipc, "gnss0").unwrap();
+    let (_ns, publisher, subscriber) = velocity_pair("overflow");
     let n = SERVICE_SETTINGS.subscriber_buffer_size as u64 + 10;
     for seq in 0..n {
         publisher.send(sample(seq)).unwrap();

@@ -12,6 +12,7 @@
 //!   the daemon before the first sample.
 //! - [`Vehicle`] — a simulated vehicle: one track of
 //!   `ghnet_lab::sim::simulate_realistic`, replayed as [`VelocitySample`]s.
+//!   [`CarDrive`] — the demo's car that drives, stops and backs up, with its truth.
 //! - [`now_ns`], [`latency_since`] — wall-clock timestamps in the unit the wire wants,
 //!   and a heading's age; [`log_to_stderr`] — tracing for the demo's daemon.
 //! - [`table`] — the live heading table of `subscriber`, `zenoh_subscriber` and
@@ -31,8 +32,11 @@ use ghnet_client::{
     flags, HeadingEstimate, HeadingSubscriber, IpcConfig, RecvError, VelocityPublisher,
     VelocitySample,
 };
+use ghnet_lab::drive::{simulate_track, DriveParams, DriveSample, Platform};
 use ghnet_lab::sim::{simulate_realistic, RealisticParams, Sample};
 use iceoryx2::prelude::*;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 /// Arguments every example takes.
 #[derive(Debug, Clone, clap::Args)]
@@ -252,6 +256,58 @@ impl Vehicle {
             flags: flags::SIMULATED,
             ..VelocitySample::new(timestamp_ns, seq, s.v_north, s.v_east, s.v_down)
         }
+    }
+}
+
+/// A simulated car for the demo: a stretch of a car track of `ghnet_lab::drive` that
+/// drives, slows down, stops and backs up (the moment single-epoch heading gets wrong
+/// by 180°), with the truth beside every epoch.
+#[derive(Debug, Clone)]
+pub struct CarDrive {
+    /// The epochs, `t_s` from 0.
+    pub samples: Vec<DriveSample>,
+    /// The receiver's output rate, Hz.
+    pub rate_hz: u32,
+}
+
+impl CarDrive {
+    /// Up to `seconds` of car at `rate_hz`, ending `seconds / 3` after the first time
+    /// the car backs up after having driven faster than 4 m/s, and starting at most 8 s
+    /// before the last fast epoch before it (so the stretch shows driving, the stop, the reversal
+    /// and what follows). `seed` picks the first car tried; the
+    /// next seeds are tried until one has such a moment.
+    pub fn new(seed: u64, rate_hz: u32, seconds: f64) -> Self {
+        let params = DriveParams {
+            rates_hz: vec![rate_hz.max(1)],
+            gaps_per_min: 0.0,
+            ..DriveParams::default()
+        };
+        for s in seed..seed + 1_000 {
+            let mut rng = ChaCha8Rng::seed_from_u64(s);
+            let (_, rate_hz, track) = simulate_track(&params, Platform::Car, 900.0, &mut rng);
+            if let Some(samples) = Self::stretch(&track, seconds) {
+                return Self { samples, rate_hz };
+            }
+        }
+        panic!("no car reversed after driving in 1000 simulated tracks");
+    }
+
+    fn stretch(track: &[DriveSample], seconds: f64) -> Option<Vec<DriveSample>> {
+        let fast = track.iter().position(|s| s.true_speed > 4.0)?;
+        let back = fast + track[fast..].iter().position(|s| s.reversing)?;
+        let end_t = track[back].t_s + seconds / 3.0;
+        // Start while the car drives, not in a long stand before it.
+        let last_fast = track[..back].iter().rposition(|s| s.true_speed > 4.0)?;
+        let start_t = (end_t - seconds).max(track[last_fast].t_s - 8.0).max(0.0);
+        let stretch: Vec<DriveSample> = track
+            .iter()
+            .filter(|s| s.t_s >= start_t && s.t_s < end_t)
+            .map(|s| DriveSample {
+                t_s: s.t_s - start_t,
+                ..*s
+            })
+            .collect();
+        (!stretch.is_empty()).then_some(stretch)
     }
 }
 

@@ -21,15 +21,21 @@ fn close(a: f32, b: f32, wrap_360: bool) -> bool {
     d <= tol || (wrap_360 && (d - 360.0).abs() <= 1e-6 * 360.0)
 }
 
-/// models' status → the wire status the daemon must send.
+/// The wire status the daemon must send for each models status (by the models' name,
+/// so this table is written independently of the daemon's mapping).
 fn wire(s: Status) -> HeadingStatus {
-    match s {
-        Status::Ok => HeadingStatus::Ok,
-        Status::LowSpeed => HeadingStatus::LowSpeed,
-        Status::Stationary => HeadingStatus::Stationary,
-        Status::Invalid => HeadingStatus::InvalidInput,
-        Status::Held => HeadingStatus::Held,
-    }
+    let table = [
+        ("ok", HeadingStatus::Ok),
+        ("low_speed", HeadingStatus::LowSpeed),
+        ("stationary", HeadingStatus::Stationary),
+        ("invalid", HeadingStatus::InvalidInput),
+        ("held", HeadingStatus::Held),
+    ];
+    let (_, w) = table
+        .iter()
+        .find(|(n, _)| *n == s.as_str())
+        .expect("every status");
+    *w
 }
 
 #[test]

@@ -11,7 +11,7 @@ use ghnet_client::zenoh::Wait;
 use ghnet_client::{
     HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample, ZenohHeadingSubscriber,
 };
-use ghnet_testkit::{now_ns, zenoh_barrier, Ghnetd, TestNamespace, WATCHDOG};
+use ghnet_testkit::{now_ns, recv_answer, zenoh_barrier, Ghnetd, TestNamespace, WATCHDOG};
 
 #[test]
 fn acl_example_denies_one_source_and_the_stats_queryable_over_zenoh_only() {
@@ -54,15 +54,7 @@ fn acl_example_denies_one_source_and_the_stats_queryable_over_zenoh_only() {
             p.send(VelocitySample::new(t0 + seq, seq, 3.0, 4.0, 0.0))
                 .unwrap();
             // Both sources are answered on iceoryx2: the ACL is about Zenoh only.
-            let h = loop {
-                let h = sub
-                    .recv_timeout(WATCHDOG)
-                    .unwrap()
-                    .expect("iceoryx2 answer");
-                if h.heading_status() != Some(HeadingStatus::Stale) {
-                    break h;
-                }
-            };
+            let h = recv_answer(sub, WATCHDOG).expect("iceoryx2 answer");
             assert_eq!(h.seq, seq);
         }
     }

@@ -108,51 +108,30 @@ impl Arch {
         if self.output == 0 {
             return specs;
         }
+        let spec = |name: String, shape: Vec<usize>, role| TensorSpec::new(name, shape, role);
         for (i, (cin, cout)) in self.conv_dims().into_iter().enumerate() {
             let l = i + 1;
-            specs.push(TensorSpec::new(
+            specs.push(spec(
                 format!("conv{l}.weight"),
                 vec![cout, cin, 1],
                 Role::Weight,
             ));
-            specs.push(TensorSpec::new(
-                format!("conv{l}.bias"),
-                vec![cout],
-                Role::Bias,
-            ));
-            specs.push(TensorSpec::new(
-                format!("bn{l}.weight"),
-                vec![cout],
-                Role::Bias,
-            ));
-            specs.push(TensorSpec::new(
-                format!("bn{l}.bias"),
-                vec![cout],
-                Role::Bias,
-            ));
-            specs.push(TensorSpec::new(
-                format!("bn{l}.running_mean"),
-                vec![cout],
-                Role::Buffer,
-            ));
-            specs.push(TensorSpec::new(
-                format!("bn{l}.running_var"),
-                vec![cout],
-                Role::Buffer,
-            ));
+            specs.push(spec(format!("conv{l}.bias"), vec![cout], Role::Bias));
+            // Batch norm: γ and β train like biases (no decay); the running statistics
+            // are buffers.
+            for (name, role) in [
+                ("weight", Role::Bias),
+                ("bias", Role::Bias),
+                ("running_mean", Role::Buffer),
+                ("running_var", Role::Buffer),
+            ] {
+                specs.push(spec(format!("bn{l}.{name}"), vec![cout], role));
+            }
         }
         for (i, (fin, fout)) in self.fc_dims().into_iter().enumerate() {
             let l = i + 1;
-            specs.push(TensorSpec::new(
-                format!("fc{l}.weight"),
-                vec![fout, fin],
-                Role::Weight,
-            ));
-            specs.push(TensorSpec::new(
-                format!("fc{l}.bias"),
-                vec![fout],
-                Role::Bias,
-            ));
+            specs.push(spec(format!("fc{l}.weight"), vec![fout, fin], Role::Weight));
+            specs.push(spec(format!("fc{l}.bias"), vec![fout], Role::Bias));
         }
         specs
     }

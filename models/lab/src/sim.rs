@@ -816,26 +816,25 @@ mod tests {
     }
 
     #[test]
-    fn s1_is_deterministic_per_seed() {
-        let p = S1Params {
+    fn simulations_are_deterministic_per_seed() {
+        let s1 = S1Params {
             speed_max: 0.5,
             heading_max: 10.0,
             ..S1Params::default()
         };
-        let a = csv_bytes(&simulate_s1(&p, 7));
-        assert_eq!(a, csv_bytes(&simulate_s1(&p, 7)));
-        assert_ne!(a, csv_bytes(&simulate_s1(&p, 8)));
-    }
-
-    #[test]
-    fn realistic_is_deterministic_per_seed() {
-        let p = RealisticParams {
+        let realistic = RealisticParams {
             samples: 5_000,
             ..RealisticParams::default()
         };
-        let a = csv_bytes(&simulate_realistic(&p, 1));
-        assert_eq!(a, csv_bytes(&simulate_realistic(&p, 1)));
-        assert_ne!(a, csv_bytes(&simulate_realistic(&p, 2)));
+        let runs: [&dyn Fn(u64) -> Vec<u8>; 2] =
+            [&|seed| csv_bytes(&simulate_s1(&s1, seed)), &|seed| {
+                csv_bytes(&simulate_realistic(&realistic, seed))
+            }];
+        for run in runs {
+            let a = run(7);
+            assert_eq!(a, run(7));
+            assert_ne!(a, run(8));
+        }
     }
 
     #[test]
