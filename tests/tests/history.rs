@@ -87,8 +87,10 @@ fn start(source: &str, model: Option<&str>, args: &[&str]) -> OneSource {
     })
 }
 
-/// (1) A car drives east, stops and stays: while stopped the answers are `Held` at the
-/// last moving heading, with a σ that grows with the time stopped.
+/// (1) A car drives east, stops and stays (10 Hz): while stopped the answers are
+/// `Held` at the last moving heading, with a σ that grows with the time stopped (for
+/// the shipped `kf`, q = 60°/√s, σ reaches the uniform-circle value, i.e.
+/// `Stationary`, after about 3 s).
 #[test]
 fn a_stopped_car_is_held_with_a_growing_sigma() {
     let (_, flag) = stateful_model();
@@ -99,17 +101,17 @@ fn a_stopped_car_is_held_with_a_growing_sigma() {
         let h = ask(
             &one.gnss,
             &one.headings,
-            moving(t0, seq, i as f64, 8.0, 90.0),
+            moving(t0, seq, i as f64 / 10.0, 8.0, 90.0),
         );
         assert_ne!(h.heading_status(), Some(HeadingStatus::Held), "{h:?}");
         seq += 1;
     }
     let mut last_std = 0.0;
-    for i in 20..28 {
+    for i in 20..30 {
         let h = ask(
             &one.gnss,
             &one.headings,
-            moving(t0, seq, i as f64, 0.01, 200.0),
+            moving(t0, seq, i as f64 / 10.0, 0.01, 200.0),
         );
         seq += 1;
         assert_eq!(
@@ -288,7 +290,7 @@ fn a_dropped_source_comes_back_with_a_fresh_history() {
     assert_eq!(c["resets_restart"], 1, "{c:?}");
 }
 
-/// (5) Two sources interleaved sample by sample keep separate histories: each gets
+/// (5) Two sources interleaved sample by sample (10 Hz) keep separate histories: each gets
 /// exactly what an in-process `StreamPredictor` gives it alone, and when both stop
 /// each is held at its own heading.
 #[test]
@@ -315,8 +317,14 @@ fn interleaved_sources_keep_separate_histories() {
             } else {
                 (0.0, 0.0)
             };
-            // The two receivers are 0.3 s apart.
-            let s = moving(t0 + k as u64 * 3 * SECOND / 10, i, i as f64, speed, course);
+            // The two receivers are 33 ms apart.
+            let s = moving(
+                t0 + k as u64 * SECOND / 30,
+                i,
+                i as f64 / 10.0,
+                speed,
+                course,
+            );
             let h = ask(gnss, sub, s);
             let want = sp.predict(&mut histories[k], &epoch(&s));
             assert_same(&h, &want, &format!("source {k} sample {i}"));
