@@ -36,8 +36,9 @@ use crate::answer::{Booked, Counters, Limits, ModelTag, Sequence, Tracker};
 #[derive(Debug)]
 pub enum Runner {
     /// A per-epoch model: one sample, or many of several sources in one batched call
-    /// (about half the cost per sample); no history.
-    Epoch(Predictor),
+    /// (about half the cost per sample); no history. Boxed: its batch scratch is much
+    /// larger than the stream predictor (one per daemon either way).
+    Epoch(Box<Predictor>),
     /// A stateful model: one sample at a time against its source's history.
     Stream {
         /// Runs the model; its scratch serves every source.
@@ -57,7 +58,7 @@ impl Runner {
                 max_gap_s,
             }
         } else {
-            Runner::Epoch(Predictor::new(model).with_policy(policy))
+            Runner::Epoch(Box::new(Predictor::new(model).with_policy(policy)))
         }
     }
 
