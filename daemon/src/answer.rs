@@ -32,6 +32,16 @@ pub struct Counters {
     /// `sources.stale_after_ms`. Not answers (no sample behind them), so not part of
     /// `answered`.
     pub stale: u64,
+    /// Histories of a stateful model cleared because the time step was longer than
+    /// the gap limit (the vehicle may have turned anywhere meanwhile). Always 0 for
+    /// per-epoch models, which keep no history.
+    pub resets_gap: u64,
+    /// Histories cleared because time went backwards (the sample is also counted in
+    /// `backwards`; counted here only when there was a history to clear).
+    pub resets_backwards: u64,
+    /// Histories cleared because the publisher restarted: its sequence numbers went
+    /// down, or the source was dropped and came back.
+    pub resets_restart: u64,
 }
 
 impl Counters {
@@ -46,6 +56,9 @@ impl Counters {
         self.backwards = self.backwards.saturating_add(o.backwards);
         self.send_errors = self.send_errors.saturating_add(o.send_errors);
         self.stale = self.stale.saturating_add(o.stale);
+        self.resets_gap = self.resets_gap.saturating_add(o.resets_gap);
+        self.resets_backwards = self.resets_backwards.saturating_add(o.resets_backwards);
+        self.resets_restart = self.resets_restart.saturating_add(o.resets_restart);
     }
 }
 
@@ -80,6 +93,30 @@ pub struct ModelTag {
     pub id: u32,
     /// [`HeadingEstimate::model_name`].
     pub name: [u8; MODEL_NAME_LEN],
+}
+
+/// How a sample's sequence number follows the previous sample's of its source.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sequence {
+    /// No previous sample (the source is new, or came back).
+    First,
+    /// Higher: the normal case (with a gap if it is more than one higher).
+    Next,
+    /// The same: a repeated sample.
+    Repeat,
+    /// Lower: the publisher restarted its counter (or reordered).
+    Lower,
+}
+
+/// What [`Tracker::book_detailed`] found about a sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Booked {
+    /// The model may see it (`false`: answered `InvalidInput`).
+    pub model: bool,
+    /// How its sequence number follows the previous one.
+    pub sequence: Sequence,
+    /// Its timestamp is below the previous sample's.
+    pub backwards: bool,
 }
 
 /// Per-source state: the previous sample's sequence number and timestamp, and the
@@ -124,9 +161,25 @@ impl Tracker {
     /// should see it. `false` means the answer is `InvalidInput` without a prediction.
     /// Book samples in arrival order, then [`finish`](Self::finish) each.
     pub fn book(&mut self, s: &VelocitySample, limits: &Limits) -> bool {
+        self.book_detailed(s, limits).model
+    }
+
+    /// [`book`](Self::book), also telling how `s` follows the previous sample: what a
+    /// source's history needs to know (a restarted publisher, a repeated sample, time
+    /// going backwards).
+    pub fn book_detailed(&mut self, s: &VelocitySample, limits: &Limits) -> Booked {
         self.counters.received += 1;
-        let mut backwards = false;
+        let mut booked = Booked {
+            model: false,
+            sequence: Sequence::First,
+            backwards: false,
+        };
         if let Some((last_seq, last_ts)) = self.last {
+            booked.sequence = match s.seq.cmp(&last_seq) {
+                std::cmp::Ordering::Greater => Sequence::Next,
+                std::cmp::Ordering::Equal => Sequence::Repeat,
+                std::cmp::Ordering::Less => Sequence::Lower,
+            };
             if s.seq > last_seq {
                 // Saturating: a publisher may jump to u64::MAX and back, and a debug
                 // build must not panic on what a remote process sends.
@@ -134,18 +187,18 @@ impl Tracker {
             } else {
                 self.counters.duplicates += 1;
             }
-            backwards = s.timestamp_ns < last_ts;
+            booked.backwards = s.timestamp_ns < last_ts;
         }
         // Always move on to this sample: one outlier then costs at most one more
         // flagged sample instead of poisoning the rest of the stream.
         self.last = Some((s.seq, s.timestamp_ns));
 
-        if backwards {
+        if booked.backwards {
             self.counters.backwards += 1;
-            false
         } else {
-            input_ok(s, limits)
+            booked.model = input_ok(s, limits);
         }
+        booked
     }
 
     /// Second half of [`answer`](Self::answer): the answer to `s` from the model's

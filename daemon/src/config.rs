@@ -29,6 +29,8 @@ pub struct Config {
     pub sources: SourcesSection,
     /// Which model answers, and its status thresholds.
     pub model: ModelSection,
+    /// Per-source history of stateful models.
+    pub history: HistorySection,
     /// Periodic counters in the log.
     pub stats: StatsSection,
     /// The Zenoh output, presence token and queryables.
@@ -222,6 +224,34 @@ impl ModelSection {
                 self.stationary_speed,
                 self.max_speed
             );
+        }
+        Ok(())
+    }
+}
+
+/// Longest `history.max_gap_s`: beyond an hour a held heading means nothing.
+pub const MAX_GAP_LIMIT_S: f64 = 3600.0;
+
+/// `[history]`: how stateful models (`kf`, `ghnet-temporal`) keep each source's
+/// history. Per-epoch models keep none and ignore it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HistorySection {
+    /// A time step longer than this (seconds) clears the source's history (the vehicle
+    /// may have turned anywhere meanwhile). Unset: the model's own `max_gap_s` (10 s
+    /// for the built-in models). Raise it for receivers that report rarely (below
+    /// 0.1 Hz) or lose fixes in tunnels on roads that do not turn; lower it for
+    /// platforms that turn in place.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_gap_s: Option<f64>,
+}
+
+impl HistorySection {
+    fn validate(&self) -> anyhow::Result<()> {
+        if let Some(g) = self.max_gap_s {
+            if !(g.is_finite() && g > 0.0 && g <= MAX_GAP_LIMIT_S) {
+                bail!("history.max_gap_s: {g} must be above 0 and at most {MAX_GAP_LIMIT_S} s");
+            }
         }
         Ok(())
     }
@@ -466,6 +496,10 @@ pub struct Cli {
     /// model.max_speed (m/s).
     #[arg(long, value_name = "M_PER_S")]
     pub max_speed: Option<f64>,
+    /// history.max_gap_s: a longer time step clears a source's history (stateful
+    /// models; default: the model's own limit).
+    #[arg(long, value_name = "S")]
+    pub history_max_gap_s: Option<f64>,
     /// stats.interval_s: seconds between counter log lines, 0 = never.
     #[arg(long, value_name = "S")]
     pub stats_interval_s: Option<u64>,
@@ -570,6 +604,7 @@ impl Config {
         set(&mut self.model.stationary_speed, &cli.stationary_speed);
         set(&mut self.model.max_std_deg, &cli.max_std_deg);
         set(&mut self.model.max_speed, &cli.max_speed);
+        set_some(&mut self.history.max_gap_s, &cli.history_max_gap_s);
         set(&mut self.stats.interval_s, &cli.stats_interval_s);
         set(&mut self.zenoh.enabled, &cli.zenoh_enabled);
         set(&mut self.zenoh.mode, &cli.zenoh_mode);
@@ -593,6 +628,7 @@ impl Config {
             );
         }
         self.model.validate()?;
+        self.history.validate()?;
         self.zenoh.validate()
     }
 
@@ -749,6 +785,9 @@ mod tests {
         assert_eq!(c.model.name, "paper-s1");
         assert_eq!(c.ipc.service_prefix, "site1/ghnet");
         assert_eq!(c.stats_interval(), None);
+        assert_eq!(c.history.max_gap_s, None, "unset: the model's own");
+        let c = Config::from_cli(&cli(&["--history-max-gap-s", "30"])).unwrap();
+        assert_eq!(c.history.max_gap_s, Some(30.0));
 
         // No file at all: defaults.
         assert_eq!(Config::from_cli(&cli(&[])).unwrap(), Config::default());
@@ -792,6 +831,9 @@ mod tests {
         })
         .contains("max_sources"));
         assert!(invalid(|c| c.model.max_speed = f64::NAN).starts_with("model.max_speed"));
+        for bad in [0.0, -1.0, f64::INFINITY, 3601.0] {
+            assert!(invalid(|c| c.history.max_gap_s = Some(bad)).starts_with("history.max_gap_s"));
+        }
         assert!(invalid(|c| c.model.max_std_deg = -1.0).starts_with("model.max_std_deg"));
         assert!(invalid(|c| c.model.stationary_speed = 200.0).starts_with("model.stationary_speed"));
         assert!(invalid(|c| c.model.name = " ".into()).starts_with("model.name"));

@@ -3,14 +3,17 @@
 //!
 //! # Layout
 //!
-//! - [`config`] — [`Config`] (TOML sections `ipc`, `sources`, `model`, `stats`,
-//!   `zenoh`) and
+//! - [`config`] — [`Config`] (TOML sections `ipc`, `sources`, `model`, `history`,
+//!   `stats`, `zenoh`) and
 //!   [`config::Cli`] (clap flags overriding it); validation with one-line errors that
 //!   name the key.
 //! - [`answer`] — per-sample logic without IPC: input checks, sequence and timestamp
 //!   bookkeeping ([`Counters`]), the model call (one sample, or many, possibly of
 //!   several sources, with one batched call: [`answer::Batch`]), mapping to the wire
 //!   status.
+//! - [`history`] — stateful models (`kf`, `ghnet-temporal`): one history per source,
+//!   samples one at a time in arrival order, the reset rules (gap, time backwards,
+//!   restarted publisher, repeated sample) and their counters.
 //! - `lock` (private) — one ghnetd per service prefix and iceoryx2 namespace: an
 //!   exclusive lock file holding the pid, released by the kernel when its holder
 //!   dies (so `kill -9` leaves nothing to clean up).
@@ -89,6 +92,7 @@ use serde::Serialize;
 pub mod answer;
 pub mod config;
 mod discovery;
+pub mod history;
 mod lock;
 mod output;
 mod remote;

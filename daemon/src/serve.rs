@@ -25,12 +25,13 @@ use ghnet_client::iceoryx2::config::Config as IoxConfig;
 use ghnet_client::iceoryx2::prelude::*;
 use ghnet_client::iceoryx2::waitset::WaitSetGuard;
 use ghnet_client::{HeadingEstimate, IpcConfig, SERVICE_SETTINGS};
-use ghnet_models::{Model, Predictor};
+use ghnet_models::Model;
 use tracing::{debug, info, warn};
 
 use crate::answer::{Batch, Counters, Limits, ModelTag};
 use crate::config::Config;
 use crate::discovery::{velocity_sources, ServiceDirWatch};
+use crate::history::Runner;
 use crate::lock::InstanceLock;
 use crate::output::Burst;
 use crate::remote::ZenohSide;
@@ -133,7 +134,9 @@ struct Daemon {
     config: Config,
     ipc: IpcConfig,
     iox_config: IoxConfig,
-    predictor: Predictor,
+    /// The model: per-epoch (batched when samples pile up) or stateful (one sample
+    /// at a time against each source's history).
+    runner: Runner,
     batch: Batch,
     wake: Wake,
     limits: Limits,
@@ -191,6 +194,8 @@ impl Daemon {
             discovery = config.sources.discovery,
             discovery_interval_ms = config.sources.discovery_interval_ms,
             stale_after_ms = config.sources.stale_after_ms,
+            stateful = model.is_stateful(),
+            history_max_gap_s = ?config.history.max_gap_s.or(model.meta().kind.max_gap_s().map(f64::from)),
             lock = %lock.path().display(),
             "ghnetd starting"
         );
@@ -202,7 +207,7 @@ impl Daemon {
                 id: model.id(),
                 name: HeadingEstimate::encode_model_name(model.name()),
             },
-            predictor: Predictor::new(model).with_policy(config.status_policy()),
+            runner: Runner::new(model, config.status_policy(), config.history.max_gap_s),
             batch: Batch::new(BATCH),
             wake: Wake::default(),
             next_stats: config.stats_interval().map(|i| Instant::now() + i),
@@ -346,16 +351,15 @@ impl Daemon {
             }
         }
         let n = batch.samples.len();
-        if n < BATCH_MIN {
+        // A stateful model takes every sample alone, in order, against its source's
+        // history; a per-epoch model batches from BATCH_MIN samples on.
+        let batched = n >= BATCH_MIN && self.runner.batched().is_some();
+        if !batched {
             for i in 0..n {
                 let (t0, f) = (Instant::now(), wake.owner[i]);
                 let mut state = sources[f].state.borrow_mut();
-                let answer = state.tracker.answer(
-                    &batch.samples[i],
-                    &mut self.predictor,
-                    &self.limits,
-                    &self.tag,
-                );
+                let s = &batch.samples[i];
+                let answer = state.answer(s, &mut self.runner, &self.limits, &self.tag);
                 wake.answered[f] |= sources[f].deliver(&mut state, answer, t0, Burst::of(i, n));
             }
         } else {
@@ -364,7 +368,7 @@ impl Daemon {
                 let mut state = sources[wake.owner[i]].state.borrow_mut();
                 batch.book(i, &mut state.tracker, &self.limits);
             }
-            batch.predict(&mut self.predictor);
+            batch.predict(self.runner.batched().expect("per-epoch model"));
             for i in 0..n {
                 let f = wake.owner[i];
                 let mut state = sources[f].state.borrow_mut();
@@ -464,6 +468,7 @@ impl Daemon {
         remove.sort_unstable_by(|a, b| b.cmp(a));
         for i in remove {
             let s = sources.swap_remove(i);
+            s.forget_history();
             s.log_counters("source removed: no publishers left");
             self.retired
                 .entry(s.name.clone())
@@ -508,6 +513,7 @@ impl Daemon {
             name,
             kind,
             counters,
+            self.runner.history(),
         )
     }
 

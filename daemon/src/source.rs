@@ -11,10 +11,13 @@ use std::cell::RefCell;
 use std::time::{Duration, Instant};
 
 use ghnet_client::iceoryx2::prelude::*;
-use ghnet_client::{HeadingEstimate, HeadingPublisher, IpcConfig, VelocitySubscriber};
+use ghnet_client::{
+    HeadingEstimate, HeadingPublisher, IpcConfig, VelocitySample, VelocitySubscriber,
+};
 use tracing::{debug, info, warn};
 
-use crate::answer::{stale_message, Batch, Counters, Tracker};
+use crate::answer::{stale_message, Batch, Counters, Limits, ModelTag, Tracker};
+use crate::history::{Runner, SourceHistory};
 use crate::output::{Burst, HeadingOutput};
 use crate::remote::{LatencyRing, ZenohSide};
 
@@ -52,11 +55,28 @@ pub(crate) struct Source {
 /// Everything that changes while serving a source.
 pub(crate) struct State {
     pub(crate) tracker: Tracker,
+    /// A stateful model's history of this source (`None` for a per-epoch model);
+    /// made when the source is opened, so a source that comes back starts afresh.
+    pub(crate) history: Option<SourceHistory>,
     /// The last answer and recent processing times, for the Zenoh stats queryable
     /// (`last` is also what a `Stale` message echoes).
     pub(crate) last: Option<HeadingEstimate>,
     pub(crate) latency: LatencyRing,
     silence: Silence,
+}
+
+impl State {
+    /// Books `s` and answers it with `runner`, through this source's history for a
+    /// stateful model. `processing_ns` is left at 0.
+    pub(crate) fn answer(
+        &mut self,
+        s: &VelocitySample,
+        runner: &mut Runner,
+        limits: &Limits,
+        tag: &ModelTag,
+    ) -> HeadingEstimate {
+        runner.answer(&mut self.tracker, self.history.as_mut(), s, limits, tag)
+    }
 }
 
 /// Silence watch, kept by housekeeping only (the per-sample path does not touch it).
@@ -72,8 +92,8 @@ impl Source {
     /// Opens the ports of `name` on `node`: the velocity subscriber, the iceoryx2
     /// heading publisher and, with Zenoh on, the Zenoh heading publishers. The
     /// counters continue `counters` (a source that comes back keeps its totals); the
-    /// sequence tracking starts afresh, since a new publisher may restart its
-    /// sequence numbers.
+    /// sequence tracking and the model's `history` start afresh, since a new
+    /// publisher may restart its sequence numbers and its vehicle may have moved.
     pub(crate) fn open(
         node: &Node<ipc::Service>,
         ipc: &IpcConfig,
@@ -81,6 +101,7 @@ impl Source {
         name: &str,
         kind: Kind,
         counters: Counters,
+        history: Option<SourceHistory>,
     ) -> anyhow::Result<Self> {
         let velocity = VelocitySubscriber::with_node(node, ipc, name)?;
         let heading = HeadingPublisher::with_node(node, ipc, name)?;
@@ -103,6 +124,7 @@ impl Source {
                     stale_sent: false,
                 },
                 tracker,
+                history,
                 last: None,
                 latency: LatencyRing::new(),
             }),
@@ -138,6 +160,9 @@ impl Source {
             backwards = c.backwards,
             send_errors = c.send_errors,
             stale = c.stale,
+            resets_gap = c.resets_gap,
+            resets_backwards = c.resets_backwards,
+            resets_restart = c.resets_restart,
             publishers = self.velocity.publisher_count(),
             "{what}"
         );
@@ -170,6 +195,19 @@ impl Source {
             }
         }
         false
+    }
+
+    /// Drops what the model knows of this source because its publishers are gone:
+    /// the vehicle may move before one comes back. Counted in `resets_restart` when
+    /// the history had something in it.
+    pub(crate) fn forget_history(&self) {
+        let mut state = self.state.borrow_mut();
+        let State {
+            tracker, history, ..
+        } = &mut *state;
+        if let Some(h) = history {
+            h.restart(&mut tracker.counters);
+        }
     }
 
     /// Stamps the processing time (since `t0`) on `answer`, publishes it on every

@@ -3,9 +3,11 @@
 //!
 //! - the config TOML parser and validation: arbitrary text and arbitrary key/value
 //!   trees near the real schema give `Ok` or a one-line error, never a panic;
-//! - the per-sample answer path ([`ghnetd::answer::Tracker`]): arbitrary bit patterns
-//!   in every `VelocitySample` field give exactly one answer with a known status, the
-//!   echoed seq and timestamp, and counters that agree with a reference count;
+//! - the per-sample answer path ([`ghnetd::answer::Tracker`] and, for the stateful
+//!   default model, the source's history, [`ghnetd::history::Runner`]): arbitrary bit
+//!   patterns in every `VelocitySample` field give exactly one answer with a known
+//!   status, the echoed seq and timestamp, and counters that agree with a reference
+//!   count (each history reset has its cause counted);
 //! - the same through a real in-process ghnetd over real iceoryx2: every sample
 //!   answered once, `received == answered + send_errors`, `invalid` equal to the
 //!   `InvalidInput` answers seen.
@@ -23,6 +25,7 @@ use ghnet_client::{
     flags, HeadingEstimate, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample,
 };
 use ghnetd::answer::{Limits, ModelTag, Tracker};
+use ghnetd::history::Runner;
 use ghnetd::Config;
 use proptest::prelude::*;
 use proptest::test_runner::{Config as PtConfig, TestRunner};
@@ -215,6 +218,7 @@ fn check_answer(s: &VelocitySample, h: &HeadingEstimate) -> Result<(), TestCaseE
                 HeadingStatus::Ok
                     | HeadingStatus::LowSpeed
                     | HeadingStatus::Stationary
+                    | HeadingStatus::Held
                     | HeadingStatus::InvalidInput
             )
         ),
@@ -250,13 +254,14 @@ proptest! {
             id: model.id(),
             name: HeadingEstimate::encode_model_name(model.name()),
         };
-        let mut predictor = ghnet_models::Predictor::new(model);
+        let mut runner = Runner::new(model, Default::default(), None);
+        let mut history = runner.history();
         let limits = Limits { max_speed: 100.0 };
         let mut t = Tracker::default();
         let (mut gaps, mut dups, mut back, mut invalid) = (0u64, 0u64, 0u64, 0u64);
         let mut last: Option<&VelocitySample> = None;
         for s in &samples {
-            let h = t.answer(s, &mut predictor, &limits, &tag);
+            let h = runner.answer(&mut t, history.as_mut(), s, &limits, &tag);
             check_answer(s, &h)?;
             let mut backwards = false;
             if let Some(l) = last {
@@ -277,6 +282,12 @@ proptest! {
         let c = t.counters;
         prop_assert_eq!(c.received, samples.len() as u64);
         prop_assert_eq!((c.gaps, c.duplicates, c.backwards, c.invalid), (gaps, dups, back, invalid));
+        // A backwards reset needs a backwards sample, a restart a lower seq (a duplicate).
+        prop_assert!(c.resets_backwards <= c.backwards && c.resets_restart <= c.duplicates);
+        if let Some(h) = &history {
+            let r = h.history().resets();
+            prop_assert_eq!((r.gap, r.backwards, r.explicit), (c.resets_gap, c.resets_backwards, c.resets_restart));
+        }
     }
 }
 

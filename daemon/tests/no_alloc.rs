@@ -51,12 +51,43 @@ struct PerSample {
     bursts: f64,
 }
 
+/// The default model, `kf` and ghnet-temporal (stateful: every sample goes alone
+/// through its source's history), and the per-epoch model that batches.
 #[test]
 fn serve_path_allocates_no_more_than_its_libraries() {
-    let ghnetd = measure(|driver| {
+    let mut models = vec![
+        ghnet_models::DEFAULT_MODEL,
+        "kf",
+        "ghnet-temporal",
+        "ghnet-epoch",
+    ];
+    models.sort_unstable();
+    models.dedup();
+    let raw = measure_raw();
+    for model in models {
+        let ghnetd = measure_ghnetd(model);
+        eprintln!("allocations per sample: ghnetd ({model}) {ghnetd:?}, raw iceoryx2 + Zenoh calls {raw:?}");
+        assert!(
+            ghnetd.one_in_flight < raw.one_in_flight + MARGIN,
+            "{model}, one sample in flight: ghnetd {:.2} vs the libraries' {:.2} per sample",
+            ghnetd.one_in_flight,
+            raw.one_in_flight
+        );
+        assert!(
+            ghnetd.bursts < raw.bursts + MARGIN,
+            "{model}, bursts: ghnetd {:.2} vs the libraries' {:.2} per sample",
+            ghnetd.bursts,
+            raw.bursts
+        );
+    }
+}
+
+fn measure_ghnetd(model: &str) -> PerSample {
+    measure(|driver| {
         let mut daemon = InProcess::start_on(
             "noalloc",
             |c| {
+                c.model.name = model.into();
                 c.sources.static_sources = SOURCES.map(String::from).to_vec();
                 c.sources.discovery = false;
                 // No housekeeping, stale message or stats line during the test: they
@@ -70,8 +101,11 @@ fn serve_path_allocates_no_more_than_its_libraries() {
         let ipc = daemon.ipc();
         driver(ipc, endpoint);
         daemon.stop();
-    });
-    let raw = measure(|driver| {
+    })
+}
+
+fn measure_raw() -> PerSample {
+    measure(|driver| {
         let dir = tempfile::tempdir().unwrap();
         let ns = ghnet_client::testing::TestNamespace::new("noallocraw");
         let endpoint = unix_endpoint(dir.path().join("raw.sock"));
@@ -83,20 +117,7 @@ fn serve_path_allocates_no_more_than_its_libraries() {
         driver(ns.ipc(), endpoint);
         stop.store(true, Relaxed);
         server.join().unwrap();
-    });
-    eprintln!("allocations per sample: ghnetd {ghnetd:?}, raw iceoryx2 + Zenoh calls {raw:?}");
-    assert!(
-        ghnetd.one_in_flight < raw.one_in_flight + MARGIN,
-        "one sample in flight: ghnetd {:.2} vs the libraries' {:.2} per sample",
-        ghnetd.one_in_flight,
-        raw.one_in_flight
-    );
-    assert!(
-        ghnetd.bursts < raw.bursts + MARGIN,
-        "bursts: ghnetd {:.2} vs the libraries' {:.2} per sample",
-        ghnetd.bursts,
-        raw.bursts
-    );
+    })
 }
 
 /// Runs `serve`, which starts a server, calls the driver with the server's iceoryx2

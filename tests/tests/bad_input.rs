@@ -6,6 +6,12 @@
 //! A case is a list of samples sent after one good sample (seq 0) and followed by
 //! one good sample; [`run_case`] checks every answer, then the daemon's counters
 //! (`@ghnetd/stats`), then that ghnetd exits cleanly on SIGTERM.
+//!
+//! The table's expectations are per epoch (each answer depends on its own sample), so
+//! the daemon runs the per-epoch model [`PER_EPOCH`]: with the stateful default a
+//! stopped or hopelessly noisy sample after a moving one is `Held` instead
+//! (`history.rs`), and arbitrary streams through the stateful path are fuzzed in
+//! `daemon/tests/fuzz.rs`.
 
 use std::time::Duration;
 
@@ -18,6 +24,9 @@ use ghnet_testkit::{
     free_tcp_port, now_ns, recv_answer, wait_until, zenoh_barrier, Ghnetd, Listen, OneSource,
     WATCHDOG,
 };
+
+/// The model whose answers depend on one sample only.
+const PER_EPOCH: &str = "ghnet-epoch";
 
 /// What a sample's answer must be.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -101,7 +110,7 @@ fn check(want: Want, h: &HeadingEstimate, what: &str) {
 /// counters, and a clean exit.
 fn run_case(name: &str, case: impl FnOnce(u64) -> Vec<(VelocitySample, Want)>, adds: Adds) {
     let source = "bad";
-    let one = OneSource::start(source, |b| b);
+    let one = OneSource::start(source, |b| b.model(PER_EPOCH));
 
     let t0 = now_ns();
     let mut samples = vec![(good(t0, 0), Want::Moving)];
@@ -300,7 +309,7 @@ fn exactly_zero_velocity_is_stationary() {
 /// from the previous sample: each answer depends on its own sample only.
 #[test]
 fn zero_velocity_answer_carries_no_held_heading() {
-    let one = OneSource::start("z", |b| b.listen(Listen::Off));
+    let one = OneSource::start("z", |b| b.listen(Listen::Off).model(PER_EPOCH));
     let t0 = now_ns();
     let mut zero_answers = Vec::new();
     // Zero velocity after heading east, then after heading west: same answer.

@@ -170,8 +170,13 @@ fn missing_model_file_named_in_the_config_file() {
 
 /// Safetensors bytes of the test model with its weights replaced by `params`
 /// (metadata unchanged), written through the models crate's weights API.
+/// A built-in model with network tensors to break (the default, `kf`, has none).
+fn network_model() -> ghnet_models::Model {
+    ghnet_models::Model::builtin("ghnet-epoch").unwrap()
+}
+
 fn model_file(dir: &std::path::Path, params: &ghnet_models::params::ParamSet) -> PathBuf {
-    let meta = test_model().model.meta().clone();
+    let meta = network_model().meta().clone();
     let file = dir.join("model.safetensors");
     ghnet_models::weights::write(&file, params, &meta).unwrap();
     file
@@ -180,7 +185,7 @@ fn model_file(dir: &std::path::Path, params: &ghnet_models::params::ParamSet) ->
 #[test]
 fn model_file_with_wrong_shapes_names_the_tensor() {
     let dir = tempfile::tempdir().unwrap();
-    let model = &test_model().model;
+    let model = &network_model();
     // One more output of the first convolution: conv1.* get 1 more row than the
     // metadata's architecture says.
     let mut arch = model.meta().architecture.clone();
@@ -195,7 +200,7 @@ fn model_file_with_wrong_shapes_names_the_tensor() {
 #[test]
 fn model_file_with_non_finite_weights_names_the_tensor() {
     let dir = tempfile::tempdir().unwrap();
-    let mut params = test_model().model.params().clone();
+    let mut params = network_model().params().clone();
     let r = params.range(params.index_of("fc1.bias").unwrap());
     params.data_mut()[r.start] = f32::NAN;
     let file = model_file(dir.path(), &params);

@@ -1,14 +1,23 @@
 //! A published sample comes back as the heading `ghnet_models` computes in-process,
 //! exactly once, in order, with its `seq` and timestamp echoed.
+//!
+//! The comparisons use the per-epoch `Predictor`, so the daemon runs the per-epoch
+//! model [`PER_EPOCH`] (which is also the one that batches); the stateful default is
+//! compared with the in-process `StreamPredictor` in `history.rs`.
 
 use std::time::Duration;
 
 use ghnet_client::{flags, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
 use ghnet_lab::sim::{simulate_realistic, RealisticParams};
 use ghnet_models::{Predictor, Status, StatusPolicy};
-use ghnet_testkit::{
-    assert_silent, now_ns, test_model, Ghnetd, OneSource, TestNamespace, WATCHDOG,
-};
+use ghnet_testkit::{assert_silent, now_ns, Ghnetd, OneSource, TestNamespace, WATCHDOG};
+
+/// The model the comparisons mean: one answer per sample, no history.
+const PER_EPOCH: &str = "ghnet-epoch";
+
+fn per_epoch_model() -> std::sync::Arc<ghnet_models::Model> {
+    std::sync::Arc::new(ghnet_models::Model::builtin(PER_EPOCH).unwrap())
+}
 
 /// `|a - b| <= 1e-6 · max(1, |b|)`, both NaN counting as equal, and headings that
 /// differ by a full turn (359.9999… vs 0) counting as equal when `wrap_360`.
@@ -40,7 +49,7 @@ fn wire(s: Status) -> HeadingStatus {
 
 #[test]
 fn heading_equals_in_process_model_and_echoes_seq_and_timestamp() {
-    let one = OneSource::start("echo", |b| b);
+    let one = OneSource::start("echo", |b| b.model(PER_EPOCH));
 
     // Every compass direction, the status boundaries, and a realistic track.
     let mut inputs: Vec<(f32, f32)> = vec![
@@ -65,8 +74,8 @@ fn heading_equals_in_process_model_and_echoes_seq_and_timestamp() {
             .map(|s| (s.v_north, s.v_east)),
     );
 
-    let tm = test_model();
-    let mut predictor = Predictor::new(tm.model.clone()).with_policy(StatusPolicy::default());
+    let model = per_epoch_model();
+    let mut predictor = Predictor::new(model.clone()).with_policy(StatusPolicy::default());
     let (mut max_diff, mut statuses) = (0.0f32, std::collections::BTreeSet::new());
     let t_base = now_ns();
     for (i, &(vn, ve)) in inputs.iter().enumerate() {
@@ -96,8 +105,8 @@ fn heading_equals_in_process_model_and_echoes_seq_and_timestamp() {
         assert!(close(h.heading_std_deg, want.std_deg, false), "std: {ctx}");
         assert!(close(h.atan2_deg, want.atan2_deg, true), "atan2: {ctx}");
         assert!(close(h.speed, want.speed, false), "speed: {ctx}");
-        assert_eq!(h.model_id, tm.model.id(), "{ctx}");
-        let name = tm.model.name();
+        assert_eq!(h.model_id, model.id(), "{ctx}");
+        let name = model.name();
         assert_eq!(h.model_name_str(), &name[..name.len().min(16)], "{ctx}");
         for (a, b) in [
             (h.heading_deg, want.heading_deg),
@@ -134,7 +143,7 @@ fn sources_waking_together_get_their_own_answers_in_order() {
     const SOURCES: usize = 5;
     const PER_SOURCE: u64 = 60; // 300 in all: more than one round of 128
     let names: Vec<String> = (0..SOURCES).map(|k| format!("burst{k}")).collect();
-    let builder = Ghnetd::builder(&ns).discovery(false);
+    let builder = Ghnetd::builder(&ns).discovery(false).model(PER_EPOCH);
     let daemon = names.iter().fold(builder, |b, n| b.source(n)).start();
     let subs: Vec<_> = names
         .iter()
@@ -177,8 +186,8 @@ fn sources_waking_together_get_their_own_answers_in_order() {
     }
     daemon.signal(libc::SIGCONT);
 
-    let tm = test_model();
-    let mut predictor = Predictor::new(tm.model.clone()).with_policy(StatusPolicy::default());
+    let model = per_epoch_model();
+    let mut predictor = Predictor::new(model.clone()).with_policy(StatusPolicy::default());
     for (k, sub) in subs.iter().enumerate() {
         for i in 0..PER_SOURCE {
             let h = sub.recv_timeout(WATCHDOG).unwrap().unwrap_or_else(|| {

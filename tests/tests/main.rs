@@ -7,6 +7,8 @@
 //! - `echo` — answers equal the in-process model, exactly once, in order; `invalid`,
 //!   `bad_input` — every row of the bad-input table; `config` — start-up errors.
 //! - `discovery` — sources that appear at run time, sources that never cross.
+//! - `history` — stateful models: `Held` stops, answers equal to the in-process
+//!   `StreamPredictor` to the bit, per-source histories, resets and their counters.
 //! - `crash`, `faults`, `shutdown` — `kill -9` of the daemon, a publisher or a
 //!   subscriber; stuck subscribers, silent sources, a second daemon, full services,
 //!   permissions; SIGTERM.
@@ -30,6 +32,7 @@ mod echo;
 mod faults;
 mod fleet;
 mod gnss;
+mod history;
 mod invalid;
 mod netns;
 mod python;

@@ -827,6 +827,9 @@ mod tests {
                 let s = p.predict(vn, ve).status;
                 assert_eq!(s, Status::Stationary, "a first epoch holds nothing");
             }
+            // Within 3 sAcc of zero but with a confident σ: stopped, yet nothing to hold.
+            let first = p.predict_with_accuracy(65.0, 0.0, 29.0);
+            assert_eq!(first.status, Status::Stationary, "{first:?}");
             let mut out = [Prediction::INVALID; 2];
             p.predict_batch(&[0.0, f32::NAN], &[3.0, 1.0], &mut out);
             assert_eq!(out[0], a);

@@ -1,0 +1,344 @@
+//! Stateful models through a real ghnetd: each source keeps its own history, a stopped
+//! car is `Held`, the daemon answers exactly what the in-process `StreamPredictor`
+//! answers, and gaps, time going backwards and restarted publishers reset the history
+//! and are counted in `@ghnetd/stats`.
+
+use std::sync::Arc;
+
+use ghnet_client::{
+    HeadingEstimate, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample,
+};
+use ghnet_lab::drive::{simulate, DriveParams};
+use ghnet_models::stream::{Epoch, StreamPredictor};
+use ghnet_models::{Model, Prediction, Status};
+use ghnet_testkit::{now_ns, recv_answer, test_model, Ghnetd, OneSource, TestNamespace, WATCHDOG};
+
+const SECOND: u64 = 1_000_000_000;
+
+/// Publishes `s` and returns its answer (one sample in flight).
+fn ask(
+    gnss: &VelocityPublisher,
+    headings: &HeadingSubscriber,
+    s: VelocitySample,
+) -> HeadingEstimate {
+    gnss.send(s).unwrap();
+    let h = recv_answer(headings, WATCHDOG).expect("an answer");
+    assert_eq!(h.seq, s.seq, "answers in order");
+    h
+}
+
+/// A sample `t_s` seconds after `t0`, `speed` m/s towards `course_deg`, receiver
+/// speed accuracy 0.1 m/s.
+fn moving(t0: u64, seq: u64, t_s: f64, speed: f32, course_deg: f32) -> VelocitySample {
+    let (s, c) = course_deg.to_radians().sin_cos();
+    let mut v = VelocitySample::new(t0 + (t_s * 1e9) as u64, seq, speed * c, speed * s, 0.0);
+    v.speed_accuracy = 0.1;
+    v
+}
+
+/// What ghnetd feeds the model for a sample: time in seconds from `timestamp_ns`.
+fn epoch(s: &VelocitySample) -> Epoch {
+    Epoch {
+        t_s: s.timestamp_ns as f64 * 1e-9,
+        v_north: s.v_north,
+        v_east: s.v_east,
+        speed_acc: s.speed_accuracy,
+    }
+}
+
+/// The daemon's answer equals the in-process prediction to the bit.
+fn assert_same(h: &HeadingEstimate, want: &Prediction, ctx: &str) {
+    let status = match want.status {
+        Status::Ok => HeadingStatus::Ok,
+        Status::LowSpeed => HeadingStatus::LowSpeed,
+        Status::Stationary => HeadingStatus::Stationary,
+        Status::Invalid => HeadingStatus::InvalidInput,
+        Status::Held => HeadingStatus::Held,
+    };
+    assert_eq!(h.heading_status(), Some(status), "{ctx}: {h:?} vs {want:?}");
+    for (a, b) in [
+        (h.heading_deg, want.heading_deg),
+        (h.heading_std_deg, want.std_deg),
+        (h.atan2_deg, want.atan2_deg),
+        (h.speed, want.speed),
+    ] {
+        assert_eq!(a.to_bits(), b.to_bits(), "{ctx}: {h:?} vs {want:?}");
+    }
+}
+
+/// The shipped default model must be a stateful one for these tests to mean
+/// anything; `kf` otherwise.
+fn stateful_model() -> (Arc<Model>, Option<&'static str>) {
+    let tm = test_model();
+    if tm.model.is_stateful() {
+        (tm.model.clone(), tm.flag)
+    } else {
+        (Arc::new(Model::builtin("kf").unwrap()), Some("kf"))
+    }
+}
+
+fn start(source: &str, model: Option<&str>, args: &[&str]) -> OneSource {
+    OneSource::start(source, |b| {
+        let b = args.iter().fold(b, |b, a| b.arg(*a));
+        match model {
+            Some(m) => b.model(m),
+            None => b,
+        }
+    })
+}
+
+/// (1) A car drives east, stops and stays (10 Hz): while stopped the answers are
+/// `Held` at the last moving heading, with a σ that grows with the time stopped (for
+/// the shipped `kf`, q = 60°/√s, σ reaches the uniform-circle value, i.e.
+/// `Stationary`, after about 3 s).
+#[test]
+fn a_stopped_car_is_held_with_a_growing_sigma() {
+    let (_, flag) = stateful_model();
+    let one = start("held", flag, &[]);
+    let t0 = now_ns();
+    let mut seq = 0;
+    for i in 0..20 {
+        let h = ask(
+            &one.gnss,
+            &one.headings,
+            moving(t0, seq, i as f64 / 10.0, 8.0, 90.0),
+        );
+        assert_ne!(h.heading_status(), Some(HeadingStatus::Held), "{h:?}");
+        seq += 1;
+    }
+    let mut last_std = 0.0;
+    for i in 20..30 {
+        let h = ask(
+            &one.gnss,
+            &one.headings,
+            moving(t0, seq, i as f64 / 10.0, 0.01, 200.0),
+        );
+        seq += 1;
+        assert_eq!(
+            h.heading_status(),
+            Some(HeadingStatus::Held),
+            "t {i}: {h:?}"
+        );
+        assert!((h.heading_deg - 90.0).abs() < 3.0, "t {i}: {h:?}");
+        assert!(h.heading_std_deg > last_std, "t {i}: σ grows: {h:?}");
+        last_std = h.heading_std_deg;
+    }
+}
+
+/// (2) The daemon's headings for a simulated drive (stops, reversing, fix gaps, a
+/// receiver with or without speed accuracy) equal the in-process `StreamPredictor`'s
+/// for the same stream, bit for bit: for the shipped default and for ghnet-temporal.
+#[test]
+fn daemon_equals_in_process_stream_predictor_bit_for_bit() {
+    let params = DriveParams {
+        tracks: 2,
+        platform_share: 0.0,
+        track_min_s: 60.0,
+        track_max_s: 60.0,
+        ..DriveParams::default()
+    };
+    let tracks = simulate(&params, 14);
+    let (default, flag) = stateful_model();
+    let temporal = Arc::new(Model::builtin("ghnet-temporal").unwrap());
+    for (model, flag) in [(default, flag), (temporal, Some("ghnet-temporal"))] {
+        let one = start("bits", flag, &[]);
+        let mut sp = StreamPredictor::new(model.clone());
+        let mut history = sp.history();
+        let (t0, mut seq) = (now_ns(), 0);
+        for (k, track) in tracks.iter().enumerate() {
+            // The second track starts after a pause longer than any gap limit.
+            let start = t0 + k as u64 * 1000 * SECOND;
+            for d in track.samples.iter().take(200) {
+                let mut s = VelocitySample::new(
+                    start + (d.t_s * 1e9) as u64,
+                    seq,
+                    d.v_north,
+                    d.v_east,
+                    0.0,
+                );
+                s.speed_accuracy = d.speed_acc;
+                let h = ask(&one.gnss, &one.headings, s);
+                let want = sp.predict(&mut history, &epoch(&s));
+                assert_same(&h, &want, &format!("{} seq {seq}", model.name()));
+                seq += 1;
+            }
+        }
+        eprintln!("{}: {seq} answers equal to the bit", model.name());
+    }
+}
+
+/// (3) A time step longer than the gap limit and a timestamp that goes backwards
+/// each clear the history (a stopped car is then `Stationary`, not `Held`) and are
+/// counted once in the stats.
+#[test]
+fn a_gap_and_time_going_backwards_reset_the_history_and_are_counted() {
+    let (_, flag) = stateful_model();
+    let one = start("resets", flag, &["--history-max-gap-s", "5"]);
+    let t0 = now_ns();
+    let mut seq = 0;
+    let mut at = |t: f64, speed: f32| {
+        seq += 1;
+        ask(&one.gnss, &one.headings, moving(t0, seq, t, speed, 45.0))
+    };
+    for t in 0..10 {
+        at(t as f64, 6.0);
+    }
+    let held = at(10.0, 0.0);
+    assert_eq!(held.heading_status(), Some(HeadingStatus::Held), "{held:?}");
+    // 6 s without a sample (the limit is 5 s): the history is gone.
+    let after_gap = at(16.0, 0.0);
+    assert_eq!(
+        after_gap.heading_status(),
+        Some(HeadingStatus::Stationary),
+        "{after_gap:?}"
+    );
+    for t in 17..25 {
+        at(t as f64, 6.0);
+    }
+    let back = at(20.0, 6.0);
+    assert_eq!(
+        back.heading_status(),
+        Some(HeadingStatus::InvalidInput),
+        "{back:?}"
+    );
+    let after_back = at(21.0, 0.0);
+    assert_eq!(
+        after_back.heading_status(),
+        Some(HeadingStatus::Stationary),
+        "{after_back:?}"
+    );
+    let c = one
+        .daemon
+        .wait_for_counters("resets", |c| c["received"] == seq);
+    let got = [
+        "resets_gap",
+        "resets_backwards",
+        "resets_restart",
+        "backwards",
+    ]
+    .map(|k| c[k]);
+    assert_eq!(got, [1, 1, 0, 1], "{c:?}");
+}
+
+/// (4) A publisher that restarts (a new process counting from seq 0 again) gets a
+/// fresh history, counted as `resets_restart`; and a discovered source that is
+/// dropped and comes back starts afresh too.
+#[test]
+fn a_restarted_publisher_gets_a_fresh_history() {
+    let (_, flag) = stateful_model();
+    let one = start("restart", flag, &[]);
+    let t0 = now_ns();
+    for seq in 0..10 {
+        ask(
+            &one.gnss,
+            &one.headings,
+            moving(t0, 100 + seq, seq as f64, 6.0, 300.0),
+        );
+    }
+    let held = ask(&one.gnss, &one.headings, moving(t0, 110, 10.0, 0.0, 0.0));
+    assert_eq!(held.heading_status(), Some(HeadingStatus::Held), "{held:?}");
+    let OneSource {
+        ns: _ns,
+        daemon,
+        gnss,
+        headings,
+    } = one;
+    drop(gnss);
+    let gnss = VelocityPublisher::new(daemon.ipc(), "restart").unwrap();
+    daemon.wait_serving(&gnss);
+    let fresh = ask(&gnss, &headings, moving(t0, 0, 11.0, 0.0, 0.0));
+    assert_eq!(
+        fresh.heading_status(),
+        Some(HeadingStatus::Stationary),
+        "{fresh:?}"
+    );
+    let c = daemon.wait_for_counters("restart", |c| c["received"] == 12);
+    assert_eq!((c["resets_restart"], c["resets_gap"]), (1, 0), "{c:?}");
+}
+
+/// (4b) A discovered source whose publisher is gone is dropped with its history
+/// (counted as `resets_restart`); when a publisher comes back it starts afresh.
+#[test]
+fn a_dropped_source_comes_back_with_a_fresh_history() {
+    let (_, flag) = stateful_model();
+    let ns = TestNamespace::new("comeback");
+    let mut b = Ghnetd::builder(&ns).arg("--stale-after-ms").arg("100");
+    if let Some(m) = flag {
+        b = b.model(m);
+    }
+    let daemon = b.start();
+    let t0 = now_ns();
+    let (gnss, headings) = daemon.ends("comeback");
+    for seq in 0..10 {
+        ask(&gnss, &headings, moving(t0, seq, seq as f64, 6.0, 10.0));
+    }
+    let held = ask(&gnss, &headings, moving(t0, 10, 10.0, 0.0, 0.0));
+    assert_eq!(held.heading_status(), Some(HeadingStatus::Held), "{held:?}");
+    drop(gnss);
+    daemon.wait_until("the source is dropped", || {
+        daemon.stats()["sources"]["comeback"]["served"] == false
+    });
+    let gnss = VelocityPublisher::new(daemon.ipc(), "comeback").unwrap();
+    daemon.wait_serving(&gnss);
+    let fresh = ask(&gnss, &headings, moving(t0, 11, 11.0, 0.0, 0.0));
+    assert_eq!(
+        fresh.heading_status(),
+        Some(HeadingStatus::Stationary),
+        "{fresh:?}"
+    );
+    let c = daemon.wait_for_counters("comeback", |c| c["received"] == 12);
+    assert_eq!(c["resets_restart"], 1, "{c:?}");
+}
+
+/// (5) Two sources interleaved sample by sample (10 Hz) keep separate histories: each gets
+/// exactly what an in-process `StreamPredictor` gives it alone, and when both stop
+/// each is held at its own heading.
+#[test]
+fn interleaved_sources_keep_separate_histories() {
+    let (model, flag) = stateful_model();
+    let ns = TestNamespace::new("twosrc");
+    let mut b = Ghnetd::builder(&ns)
+        .source("east")
+        .source("north")
+        .discovery(false);
+    if let Some(m) = flag {
+        b = b.model(m);
+    }
+    let daemon = b.start();
+    let ends = [daemon.ends("east"), daemon.ends("north")];
+    let mut sp = StreamPredictor::new(model);
+    let mut histories = [sp.history(), sp.history()];
+    let t0 = now_ns();
+    let mut last = [None, None];
+    for i in 0..30u64 {
+        for (k, (gnss, sub)) in ends.iter().enumerate() {
+            let (speed, course) = if i < 20 {
+                (5.0 + k as f32, 90.0 * (1 - k) as f32)
+            } else {
+                (0.0, 0.0)
+            };
+            // The two receivers are 33 ms apart.
+            let s = moving(
+                t0 + k as u64 * SECOND / 30,
+                i,
+                i as f64 / 10.0,
+                speed,
+                course,
+            );
+            let h = ask(gnss, sub, s);
+            let want = sp.predict(&mut histories[k], &epoch(&s));
+            assert_same(&h, &want, &format!("source {k} sample {i}"));
+            last[k] = Some(h);
+        }
+    }
+    let [east, north] = last.map(|h| h.unwrap());
+    assert_eq!(east.heading_status(), Some(HeadingStatus::Held), "{east:?}");
+    assert_eq!(
+        north.heading_status(),
+        Some(HeadingStatus::Held),
+        "{north:?}"
+    );
+    assert!((east.heading_deg - 90.0).abs() < 3.0, "{east:?}");
+    let d = north.heading_deg.min(360.0 - north.heading_deg);
+    assert!(d < 3.0, "{north:?}");
+}
