@@ -12,6 +12,9 @@
 //!   permissions; SIGTERM.
 //! - `zenoh_output`, `zenoh_acl`, `netns`, `python` — the Zenoh output, its access
 //!   control, another network namespace, the Python clients.
+//! - `pressure` — reliability under pressure (issue 12): sources retried until
+//!   served, descriptors and shared memory running out, hostile model files, root
+//!   paths, source names and `ghnet infer` arguments.
 //! - `soak` — 100 sources × 10 Hz × 60 s through `ghnet_tools::soak`.
 //!
 //! The kit finds `ghnetd` and its own bins next to this executable: `cargo test
@@ -28,6 +31,7 @@ mod echo;
 mod faults;
 mod invalid;
 mod netns;
+mod pressure;
 mod python;
 mod shutdown;
 mod soak;

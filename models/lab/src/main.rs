@@ -371,6 +371,7 @@ fn run(cli: Cli) -> Result<()> {
             let model = load(&model)?;
             let inp = File::open(&input)
                 .with_context(|| format!("cannot open input {}", input.display()))?;
+            replay::refuse_same_file(&inp, &output)?;
             let out = File::create(&output)
                 .with_context(|| format!("cannot create output {}", output.display()))?;
             let (inp, out) = (
