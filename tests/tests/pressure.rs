@@ -91,12 +91,14 @@ fn publishers(ns: &TestNamespace, n: usize) -> Vec<VelocityPublisher> {
 #[test]
 fn with_a_higher_hard_limit_ghnetd_raises_the_soft_one_and_serves_150_sources() {
     let ns = TestNamespace::new("prfd150");
-    let gnss = publishers(&ns, 150);
+    // ghnetd first: a child inherits the test process's iceoryx2 descriptors that
+    // lack O_CLOEXEC (about 8 per port here), which would eat its budget.
     let daemon = Ghnetd::builder(&ns)
         .wrapper(&["prlimit", "--nofile=1024:8192", "--"])
         .arg("--max-sources")
         .arg("200")
         .start();
+    let gnss = publishers(&ns, 150);
     stats_when(&daemon, "150 sources served", |s| {
         s["sources"].as_object().map(|m| m.len()) == Some(150)
     });
@@ -119,12 +121,14 @@ fn with_a_higher_hard_limit_ghnetd_raises_the_soft_one_and_serves_150_sources() 
 #[test]
 fn at_a_hard_limit_of_1024_the_sources_over_it_are_reported_naming_descriptors() {
     let ns = TestNamespace::new("prfd1024");
-    let gnss = publishers(&ns, 150);
+    // ghnetd first: a child inherits the test process's iceoryx2 descriptors that
+    // lack O_CLOEXEC (about 8 per port here), which would eat its budget.
     let daemon = Ghnetd::builder(&ns)
         .wrapper(&["prlimit", "--nofile=1024:1024", "--"])
         .arg("--max-sources")
         .arg("200")
         .start();
+    let gnss = publishers(&ns, 150);
     let stats = stats_when(&daemon, "every source served or unserved", |s| {
         let served = s["sources"].as_object().map_or(0, |m| m.len());
         let unserved = s["unserved"].as_object().map_or(0, |m| m.len());
