@@ -619,7 +619,11 @@ impl Config {
         names::validate_prefix(&self.ipc.service_prefix).context("ipc.service_prefix")?;
         // Builds the iceoryx2 config, which checks prefix and root path.
         self.ipc_config()?;
+        if let Some(root) = &self.ipc.iceoryx2_root_path {
+            check_root_path(root).context("ipc.iceoryx2_root_path")?;
+        }
         self.ipc.validate()?;
+        self.check_shared_memory()?;
         self.sources.validate()?;
         if self.stats.interval_s > 86_400 {
             bail!(
@@ -630,6 +634,22 @@ impl Config {
         self.model.validate()?;
         self.history.validate()?;
         self.zenoh.validate()
+    }
+
+    /// The `ipc.*` settings are allowed up to far more than a host has shared memory
+    /// for (every service of every source reserves its slots and buffers): refuses
+    /// settings whose one source would not fit in the whole of /dev/shm, saying how
+    /// much they need, rather than let the first source end in SIGBUS.
+    fn check_shared_memory(&self) -> anyhow::Result<()> {
+        let need = crate::pressure::shm_per_source(self);
+        let dir = std::path::Path::new(crate::pressure::SHM_DIR);
+        match crate::pressure::fs_size(dir) {
+            Some(size) if need > size => bail!(
+                "ipc.max_publishers / max_subscribers / max_nodes / subscriber_buffer: one source needs about {need} bytes of shared memory with these values, more than {} holds ({size} bytes)",
+                dir.display()
+            ),
+            _ => Ok(()),
+        }
     }
 
     /// The client-side view: service prefix plus the iceoryx2 config with overrides
@@ -686,6 +706,49 @@ impl Config {
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self).expect("the config always serialises")
     }
+}
+
+/// Refuses an iceoryx2 root path ghnetd must not own: ghnetd writes its lock file,
+/// node and service records there and makes it owner-only, so `/`, a pseudo
+/// filesystem, a file, another user's directory or a world-writable directory without
+/// the sticky bit (anyone could replace ghnetd's records) are configuration errors,
+/// reported before anything is created. A path that does not exist yet is created.
+fn check_root_path(root: &std::path::Path) -> anyhow::Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    let shown = root.display();
+    let canonical = root.canonicalize().unwrap_or_else(|_| root.to_owned());
+    if canonical == std::path::Path::new("/") {
+        bail!("`{shown}` is the filesystem root; use a directory of its own, e.g. /tmp/iceoryx2");
+    }
+    for pseudo in ["/proc", "/sys", "/dev"] {
+        if canonical.starts_with(pseudo) {
+            bail!("`{shown}` is under {pseudo}, not a directory ghnetd may own");
+        }
+    }
+    let meta = match std::fs::metadata(&canonical) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => bail!("`{shown}`: {e}"),
+    };
+    if !meta.is_dir() {
+        bail!("`{shown}` is not a directory");
+    }
+    // SAFETY: geteuid cannot fail and touches no memory.
+    let me = unsafe { libc::geteuid() };
+    if meta.uid() != me {
+        bail!(
+            "`{shown}` is owned by uid {}, not by this user (uid {me})",
+            meta.uid()
+        );
+    }
+    let mode = meta.mode();
+    if mode & 0o002 != 0 && mode & 0o1000 == 0 {
+        bail!(
+            "`{shown}` is world-writable without the sticky bit (mode {:o})",
+            mode & 0o7777
+        );
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -8,13 +8,18 @@ use std::time::{Duration, Instant, SystemTime};
 use ghnet_client::iceoryx2::config::Config as IoxConfig;
 use ghnet_client::iceoryx2::prelude::*;
 use ghnet_client::iceoryx2::service::static_config::messaging_pattern::MessagingPattern;
-use ghnet_client::IpcConfig;
+use ghnet_client::names::VELOCITY_SUFFIX;
+use ghnet_client::{validate_source_name, IpcConfig};
+use tracing::warn;
 
 /// The sources of every velocity service under the iceoryx2 root: publish-subscribe
-/// services named `<prefix>/<source>/velocity` with a valid source name.
+/// services named `<prefix>/<source>/velocity` with a valid source name. Services of
+/// that shape whose source name breaks the naming rules are reported to `bad` (logged
+/// once each).
 pub(crate) fn velocity_sources(
     iox_config: &IoxConfig,
     ipc: &IpcConfig,
+    bad: &mut BadNames,
 ) -> anyhow::Result<BTreeSet<String>> {
     let mut found = BTreeSet::new();
     ipc::Service::list(iox_config, |details| {
@@ -22,12 +27,43 @@ pub(crate) fn velocity_sources(
             let name = details.static_details.name().as_str();
             if let Some(source) = ipc.source_of_velocity_service(name) {
                 found.insert(source.to_owned());
+            } else if let Some(source) = velocity_shaped(ipc, name) {
+                bad.report(source);
             }
         }
         CallbackProgression::Continue
     })
     .map_err(|e| anyhow::anyhow!("cannot list iceoryx2 services: {e:?}"))?;
     Ok(found)
+}
+
+/// The part between `<prefix>/` and `/velocity` of `service`, whatever it is.
+fn velocity_shaped<'a>(ipc: &IpcConfig, service: &'a str) -> Option<&'a str> {
+    service
+        .strip_prefix(ipc.prefix())?
+        .strip_prefix('/')?
+        .strip_suffix(VELOCITY_SUFFIX)?
+        .strip_suffix('/')
+}
+
+/// Source names seen that break the naming rules: each is logged once, at warn, with
+/// the rule it breaks, then ignored (not every discovery pass).
+#[derive(Default)]
+pub(crate) struct BadNames(BTreeSet<String>);
+
+impl BadNames {
+    fn report(&mut self, source: &str) {
+        if self.0.contains(source) {
+            return;
+        }
+        let rule = match validate_source_name(source) {
+            Err(e) => e.to_string(),
+            // Valid as a name but not a single level (e.g. `a/b`).
+            Ok(()) => format!("source name `{source}` is not one level of the service name"),
+        };
+        warn!(source = %source.escape_debug(), rule = %rule, "velocity service ignored: its source name breaks the naming rules");
+        self.0.insert(source.to_owned());
+    }
 }
 
 /// Tells a discovery pass whether listing the iceoryx2 services can find anything.

@@ -95,6 +95,7 @@ mod discovery;
 pub mod history;
 mod lock;
 mod output;
+mod pressure;
 mod remote;
 mod serve;
 mod source;
@@ -139,6 +140,10 @@ pub struct Stats {
     /// services could not be opened (e.g. created by another process with other
     /// limits), or `sources.max_sources` was reached.
     pub unserved: BTreeMap<String, String>,
+    /// For each of [`unserved`](Self::unserved): how often opening it was tried
+    /// again (with backoff, 0.1 s doubling to 5 s) after the first failure; 0 for a
+    /// source over `sources.max_sources`.
+    pub unserved_retries: BTreeMap<String, u64>,
 }
 
 impl Stats {

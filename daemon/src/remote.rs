@@ -82,7 +82,8 @@ struct SourceSnapshot {
 #[derive(Default)]
 pub(crate) struct Shared {
     sources: BTreeMap<String, SourceSnapshot>,
-    unserved: BTreeMap<String, String>,
+    /// Name → (reason, retries).
+    unserved: BTreeMap<String, (String, u64)>,
     sources_added: u64,
     sources_removed: u64,
 }
@@ -127,6 +128,8 @@ struct SourceStats<'a> {
 #[derive(Serialize)]
 struct UnservedStats<'a> {
     reason: &'a str,
+    /// Times opening it was tried again after the first failure.
+    retries: u64,
 }
 
 /// The `@ghnetd/stats` answer; daemon/README.md documents every field.
@@ -182,7 +185,10 @@ impl Shared {
         let unserved = self
             .unserved
             .iter()
-            .map(|(name, reason)| (name.as_str(), UnservedStats { reason }))
+            .map(|(name, (reason, retries))| {
+                let retries = *retries;
+                (name.as_str(), UnservedStats { reason, retries })
+            })
             .collect();
         serde_json::to_string(&StatsReply {
             daemon: id,
@@ -320,9 +326,14 @@ impl ZenohSide {
         (shared.sources_added, shared.sources_removed) = totals;
     }
 
-    /// Records the sources that cannot be served (name → reason) and the add/remove
-    /// totals.
-    pub(crate) fn set_roster(&self, unserved: &BTreeMap<String, String>, added: u64, removed: u64) {
+    /// Records the sources that cannot be served (name → reason, retries) and the
+    /// add/remove totals.
+    pub(crate) fn set_roster(
+        &self,
+        unserved: &BTreeMap<String, (String, u64)>,
+        added: u64,
+        removed: u64,
+    ) {
         let mut shared = self.shared.lock().unwrap_or_else(|e| e.into_inner());
         shared.unserved.clone_from(unserved);
         (shared.sources_added, shared.sources_removed) = (added, removed);

@@ -30,10 +30,11 @@ use tracing::{debug, info, warn};
 
 use crate::answer::{Batch, Counters, Limits, ModelTag};
 use crate::config::Config;
-use crate::discovery::{velocity_sources, ServiceDirWatch};
+use crate::discovery::{velocity_sources, BadNames, ServiceDirWatch};
 use crate::history::Runner;
 use crate::lock::InstanceLock;
 use crate::output::Burst;
+use crate::pressure::{Budget, Retry};
 use crate::remote::ZenohSide;
 use crate::source::{Kind, Source};
 use crate::{ShutdownFlag, Stats};
@@ -110,21 +111,29 @@ impl Changes {
 }
 
 /// Why a source that has a velocity service is not served. Listed in the stats
-/// (`unserved`, with [`Unserved::reason`]) for as long as its velocity service exists.
+/// (`unserved`, with [`Unserved::reason`] and the retry count) for as long as its
+/// velocity service exists (a static source: for as long as ghnetd runs).
 enum Unserved {
     /// `sources.max_sources` were served when it appeared; it is served as soon as a
     /// slot frees.
     OverLimit,
-    /// Its services could not be opened (the message names the service and, for a
-    /// limit, the setting); not tried again while its velocity service exists.
-    Failed(String),
+    /// Its services could not be opened, or a resource it needs is short (the message
+    /// names the service and the setting, or the resource); tried again with backoff.
+    Failed(Retry),
 }
 
 impl Unserved {
     fn reason(&self, max_sources: usize) -> String {
         match self {
             Unserved::OverLimit => format!("sources.max_sources ({max_sources}) reached"),
-            Unserved::Failed(e) => e.clone(),
+            Unserved::Failed(r) => r.reason.clone(),
+        }
+    }
+
+    fn retries(&self) -> u64 {
+        match self {
+            Unserved::OverLimit => 0,
+            Unserved::Failed(r) => r.retries,
         }
     }
 }
@@ -144,14 +153,18 @@ struct Daemon {
     /// Counters of sources that were dropped, kept for the stats and resumed if the
     /// source comes back.
     retired: BTreeMap<String, Counters>,
-    /// Sources found but not served, reported once each. Forgotten when their
-    /// velocity service disappears.
+    /// Sources found but not served, reported once each (and again when the reason
+    /// changes). Forgotten when their velocity service disappears; static ones never.
     unserved: BTreeMap<String, Unserved>,
+    /// What a source costs in descriptors and shared memory, checked before opening one.
+    budget: Budget,
     added: u64,
     removed: u64,
     next_stats: Option<Instant>,
     /// Whether a discovery pass has anything new to list.
     services: ServiceDirWatch,
+    /// Velocity services whose source name breaks the rules, logged once each.
+    bad_names: BadNames,
     /// When the last dead-node cleanup ran.
     cleaned_at: Option<Instant>,
     // Drop order: Zenoh (output, presence, queryables, when `zenoh.enabled`), then
@@ -186,6 +199,7 @@ impl Daemon {
             }
         };
         let node = open_node(&iox_config)?;
+        let budget = Budget::measure(&config, &ipc);
         info!(
             prefix = %config.ipc.service_prefix,
             model = %model.name(),
@@ -212,11 +226,13 @@ impl Daemon {
             wake: Wake::default(),
             next_stats: config.stats_interval().map(|i| Instant::now() + i),
             services: ServiceDirWatch::new(&iox_config),
+            bad_names: BadNames::default(),
             config,
             ipc,
             iox_config,
             retired: BTreeMap::new(),
             unserved: BTreeMap::new(),
+            budget,
             added: 0,
             removed: 0,
             cleaned_at: None,
@@ -224,14 +240,15 @@ impl Daemon {
             node,
             _lock: lock,
         };
+        // A static source that cannot be opened is that source's problem (e.g. a
+        // consumer created its heading service with smaller limits): it is reported
+        // and retried like a discovered one, and the others are served meanwhile.
         let mut sources = Vec::new();
-        for name in daemon.config.sources.static_sources.clone() {
-            let source = daemon
-                .open_source(&name, Kind::Static)
-                .with_context(|| format!("static source `{name}`"))?;
-            daemon.add(source, &mut sources);
-        }
-        daemon.publish_roster();
+        let add = Changes {
+            add: daemon.config.sources.static_sources.clone(),
+            remove: Vec::new(),
+        };
+        daemon.apply(add, &mut sources);
         Ok((daemon, sources))
     }
 
@@ -398,11 +415,17 @@ impl Daemon {
             }
         }
         if self.config.sources.discovery && self.services.due(now) {
-            match velocity_sources(&self.iox_config, &self.ipc) {
+            match velocity_sources(&self.iox_config, &self.ipc, &mut self.bad_names) {
                 Ok(found) => self.discover(found, sources, &mut changes),
-                Err(e) => warn!(error = format_args!("{e:#}"), "discovery skipped"),
+                // Never fatal: the next pass lists again.
+                Err(e) => warn!(
+                    error = format_args!("{e:#}"),
+                    short = %self.budget.shortage().unwrap_or_default(),
+                    "discovery skipped"
+                ),
             }
         }
+        self.retries_due(now, sources.len(), &mut changes);
         if self.next_stats.is_some_and(|next| now >= next) {
             self.log_stats(sources);
             self.next_stats = self.config.stats_interval().map(|i| now + i);
@@ -431,11 +454,31 @@ impl Daemon {
         }
     }
 
+    /// Adds to `changes` the sources that failed to open and whose backoff is over,
+    /// as long as `sources.max_sources` leaves room (`served` are served now).
+    fn retries_due(&self, now: Instant, served: usize, changes: &mut Changes) {
+        let mut after = served - changes.remove.len() + changes.add.len();
+        for (name, u) in &self.unserved {
+            if after >= self.config.sources.max_sources {
+                return;
+            }
+            if let Unserved::Failed(r) = u {
+                if r.is_due(now) && !changes.add.contains(name) {
+                    changes.add.push(name.clone());
+                    after += 1;
+                }
+            }
+        }
+    }
+
     /// Adds to `changes` the `found` velocity services that are not served yet, up to
-    /// `sources.max_sources`; forgets unserved sources whose service is gone.
+    /// `sources.max_sources`; forgets unserved sources whose service is gone (a failed
+    /// static source stays: it is retried for as long as ghnetd runs).
     fn discover(&mut self, found: BTreeSet<String>, sources: &[Source], changes: &mut Changes) {
         let before = self.unserved.len();
-        self.unserved.retain(|name, _| found.contains(name));
+        let statics = &self.config.sources.static_sources;
+        self.unserved
+            .retain(|name, _| found.contains(name) || statics.contains(name));
         let mut roster_changed = self.unserved.len() != before;
         let max = self.config.sources.max_sources;
         let mut served = sources.len() - changes.remove.len();
@@ -485,21 +528,62 @@ impl Daemon {
             }
         }
         for name in changes.add {
-            match self.open_source(&name, Kind::Discovered) {
-                // Only serve it if a publisher is really there: the service may be a
-                // leftover or still being set up; the next pass looks again.
-                Ok(s) if s.velocity.publisher_count() > 0 => self.add(s, sources),
+            let kind = match self.config.sources.static_sources.contains(&name) {
+                true => Kind::Static,
+                false => Kind::Discovered,
+            };
+            // Resources first: opening a source without the shared memory it needs
+            // ends in SIGBUS, and without descriptors in an opaque iceoryx2 error.
+            let before = self.budget.usage();
+            let opened = match self.budget.check() {
+                Ok(()) => self
+                    .open_source(&name, kind)
+                    .map_err(|e| self.budget.explain(e)),
+                Err(short) => Err(short),
+            };
+            match opened {
+                // A discovered source is only served if a publisher is really there:
+                // the service may be a leftover or still being set up; the next pass
+                // looks again.
+                Ok(s) if kind == Kind::Static || s.velocity.publisher_count() > 0 => {
+                    self.budget.learn(before);
+                    self.add(s, sources)
+                }
                 Ok(_) => {
                     debug!(source = %name, "velocity service without publishers; not served yet")
                 }
-                Err(e) => {
-                    let reason = format!("{e:#}");
-                    warn!(source = %name, error = %reason, "cannot serve discovered source");
-                    self.unserved.insert(name, Unserved::Failed(reason));
-                }
+                Err(reason) => self.failed(name, kind, reason),
             }
         }
         self.publish_roster();
+    }
+
+    /// Records that `name` could not be opened; warns the first time and when the
+    /// reason changes, and schedules the next try.
+    fn failed(&mut self, name: String, kind: Kind, reason: String) {
+        let what = match kind {
+            Kind::Static => "cannot serve static source",
+            Kind::Discovered => "cannot serve discovered source",
+        };
+        match self.unserved.get_mut(&name) {
+            Some(Unserved::Failed(r)) => {
+                let changed = r.reason != reason;
+                r.failed_again(reason, Instant::now());
+                match changed {
+                    true => {
+                        warn!(source = %name, error = %r.reason, retries = r.retries, "{what}")
+                    }
+                    false => {
+                        debug!(source = %name, retries = r.retries, retry_in_ms = r.backoff_ms(), "still cannot serve source")
+                    }
+                }
+            }
+            _ => {
+                warn!(source = %name, error = %reason, "{what}; retrying with backoff");
+                let retry = Retry::new(reason, Instant::now());
+                self.unserved.insert(name, Unserved::Failed(retry));
+            }
+        }
     }
 
     /// Opens `name`'s ports; its counters continue where they stopped if it was
@@ -521,7 +605,9 @@ impl Daemon {
         source.log_added();
         // Its counters live on in the source now.
         self.retired.remove(&source.name);
-        self.unserved.remove(&source.name);
+        if let Some(Unserved::Failed(r)) = self.unserved.remove(&source.name) {
+            info!(source = %source.name, retries = r.retries, "source served after all (was unserved: {})", r.reason);
+        }
         self.added += 1;
         if let Some(z) = &self.zenoh {
             z.set_served(
@@ -541,7 +627,7 @@ impl Daemon {
             let unserved = self
                 .unserved
                 .iter()
-                .map(|(name, u)| (name.clone(), u.reason(max)))
+                .map(|(name, u)| (name.clone(), (u.reason(max), u.retries())))
                 .collect();
             z.set_roster(&unserved, self.added, self.removed);
         }
@@ -564,6 +650,11 @@ impl Daemon {
                 .unserved
                 .iter()
                 .map(|(name, u)| (name.clone(), u.reason(max)))
+                .collect(),
+            unserved_retries: self
+                .unserved
+                .iter()
+                .map(|(name, u)| (name.clone(), u.retries()))
                 .collect(),
         }
     }

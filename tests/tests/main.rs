@@ -14,6 +14,9 @@
 //!   permissions; SIGTERM.
 //! - `zenoh_output`, `zenoh_acl`, `netns`, `python` — the Zenoh output, its access
 //!   control, another network namespace, the Python clients.
+//! - `pressure` — reliability under pressure (issue 12): sources retried until
+//!   served, descriptors and shared memory running out, hostile model files, root
+//!   paths, source names and `ghnet infer` arguments.
 //! - `soak` — 100 sources × 10 Hz × 60 s through `ghnet_tools::soak`.
 //! - `gnss` — every real receiver capture through the `ghnet-gnss` bridge; `fleet` —
 //!   two vehicles through a Zenoh router, one wildcard consumer, a router restart.
@@ -35,6 +38,7 @@ mod gnss;
 mod history;
 mod invalid;
 mod netns;
+mod pressure;
 mod python;
 mod shutdown;
 mod soak;

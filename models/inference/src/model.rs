@@ -66,7 +66,21 @@ pub enum ModelError {
         /// What is wrong.
         cause: WeightsError,
     },
+    /// The path is not a model file ghnet reads: not a regular file (a FIFO, a
+    /// device, a directory), or larger than [`MAX_MODEL_FILE`].
+    #[error("model `{name}`: {problem}")]
+    File {
+        /// The path.
+        name: String,
+        /// What is wrong, with the size when it is the size.
+        problem: String,
+    },
 }
+
+/// Largest model file read, bytes: far above any real model (the largest built-in is
+/// well under 1 MB), so a wrong path (`/dev/zero`, a disk image, a sparse file) is
+/// refused before it is read instead of filling the memory.
+pub const MAX_MODEL_FILE: u64 = 64 << 20;
 
 /// What computes a model's answers, made once when it is loaded.
 #[derive(Debug, Clone)]
@@ -147,10 +161,10 @@ impl Model {
 
     /// Load a safetensors file.
     pub fn load(path: &Path) -> Result<Self, ModelError> {
-        let (params, meta) = weights::read(path).map_err(|cause| ModelError::Weights {
-            name: path.display().to_string(),
-            cause,
-        })?;
+        let name = path.display().to_string();
+        let bytes = read_model_file(path)?;
+        let (params, meta) =
+            weights::from_bytes(&bytes).map_err(|cause| ModelError::Weights { name, cause })?;
         Ok(Self::new(params, meta))
     }
 
@@ -553,4 +567,60 @@ impl Predictor {
             start += len;
         }
     }
+}
+
+/// The bytes of the model file `path`: only a regular file, at most
+/// [`MAX_MODEL_FILE`] bytes, checked from its metadata before reading (a FIFO would
+/// block, `/dev/zero` never ends, a 2 GB sparse file would be read whole), and the
+/// read bounded anyway (the file may grow between the check and the read).
+fn read_model_file(path: &Path) -> Result<Vec<u8>, ModelError> {
+    use std::io::Read;
+    use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
+    // O_NONBLOCK (Linux): opening a FIFO without a writer returns at once; the type
+    // is then checked on the open file, not on a path that may change meanwhile.
+    const O_NONBLOCK: i32 = 0o4000;
+    let name = path.display().to_string();
+    let io = |source| ModelError::Weights {
+        name: name.clone(),
+        cause: WeightsError::Io {
+            path: name.clone(),
+            source,
+        },
+    };
+    let refuse = |problem: String| ModelError::File {
+        name: name.clone(),
+        problem,
+    };
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(O_NONBLOCK)
+        .open(path)
+        .map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    let t = meta.file_type();
+    if !t.is_file() {
+        let what = match () {
+            _ if t.is_dir() => "a directory",
+            _ if t.is_fifo() => "a FIFO",
+            _ if t.is_char_device() => "a character device",
+            _ if t.is_block_device() => "a block device",
+            _ if t.is_socket() => "a socket",
+            _ => "something else",
+        };
+        return Err(refuse(format!("is {what}, not a regular file")));
+    }
+    let too_big = |size: u64| {
+        format!("is {size} bytes, over the {MAX_MODEL_FILE}-byte limit for a model file")
+    };
+    if meta.len() > MAX_MODEL_FILE {
+        return Err(refuse(too_big(meta.len())));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(MAX_MODEL_FILE + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > MAX_MODEL_FILE {
+        return Err(refuse(too_big(bytes.len() as u64)));
+    }
+    Ok(bytes)
 }

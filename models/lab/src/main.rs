@@ -426,6 +426,7 @@ fn infer(
         Some(c) => Box::new(std::io::Cursor::new(c.csv.as_slice())),
         None => Box::new(BufReader::with_capacity(1 << 16, open()?)),
     };
+    replay::refuse_same_file(&open()?, output)?;
     let out = File::create(output)
         .with_context(|| format!("cannot create output {}", output.display()))?;
     let out = BufWriter::with_capacity(1 << 16, out);

@@ -28,8 +28,7 @@
 //! | header already has `heading_deg`, `heading_std_deg` or `status` | error [`InferError::DuplicateColumn`] |
 //! | header names with spaces around them, a UTF-8 byte-order mark, CRLF line ends | accepted (trimmed, stripped) |
 //! | empty lines | skipped (not rows, not counted; CSV has no empty records) |
-//! | a row with fewer fields than the header (velocity column missing) | `invalid`, extra columns pass through as they are |
-//! | a row with more fields than the header | passes through, answered normally |
+//! | a row with fewer or more fields than the header | `invalid`; padded with empty fields or cut to the header's width, so every output row lines up with the output header |
 //! | non-numeric, empty, `NaN`, `inf`, non-UTF-8 velocity fields | `invalid` |
 //! | a velocity over the policy's `max_speed` (100 m/s) | `invalid` |
 //! | `speed_acc` non-numeric, empty, NaN, infinite or negative | unknown accuracy, answered with the network's σ (logs often write -1 for "not available"; the live wire has NaN for that and ghnetd rejects a negative one) |
@@ -250,6 +249,33 @@ fn fixed4(x: f32, buf: &mut Vec<u8>) -> &[u8] {
     buf
 }
 
+/// Pads `rec` with empty fields or cuts it to `width` fields, so that its output row
+/// lines up with the header; `false` when it had another width (the row is then
+/// `invalid`: which of its fields is which is a guess).
+fn fit_to_width(rec: &mut csv::ByteRecord, width: usize) -> bool {
+    let fits = rec.len() == width;
+    rec.truncate(width);
+    while rec.len() < width {
+        rec.push_field(b"");
+    }
+    fits
+}
+
+/// Refuses to write `output` when it is the file `input` was opened from (same device
+/// and inode, so hard and symbolic links count too): creating the output would
+/// truncate the input before a row is read. Checked before anything is created.
+pub fn refuse_same_file(input: &std::fs::File, output: &std::path::Path) -> anyhow::Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    let inp = input.metadata()?;
+    match std::fs::metadata(output) {
+        Ok(out) if (out.dev(), out.ino()) == (inp.dev(), inp.ino()) => anyhow::bail!(
+            "--output {} is the input file (same device and inode); refusing to overwrite it",
+            output.display()
+        ),
+        _ => Ok(()),
+    }
+}
+
 /// Stream `input` to `output`, answering every row.
 pub fn run(
     predictor: &mut impl Answer,
@@ -278,7 +304,12 @@ pub fn run(
         rows.clear();
         let mut n = 0;
         while n < BLOCK && rdr.read_byte_record(&mut records[n])? {
+            let fits = fit_to_width(&mut records[n], header.len());
             rows.push(&records[n], &cols, summary.rows + n as u64);
+            if !fits {
+                // NaN velocity: answered `invalid`, like any unusable row.
+                *rows.v_north.last_mut().expect("just pushed") = f32::NAN;
+            }
             n += 1;
         }
         if n == 0 {
@@ -491,16 +522,16 @@ mod tests {
         assert_eq!(
             statuses(&out),
             [
-                "ok", "invalid", "invalid", "ok", "invalid", "invalid", "ok", "ok", "invalid",
+                "ok", "invalid", "invalid", "invalid", "invalid", "invalid", "ok", "ok", "invalid",
                 "invalid"
             ],
             "{out}"
         );
-        assert_eq!((s.rows, s.invalid, s.first_invalid_row), (10, 6, Some(2)));
-        // A short row keeps its own fields and gets the three new ones.
-        assert!(out.contains("\n3,,,invalid\n"), "{out}");
-        // Extra fields pass through in place.
-        assert!(out.contains("\n4,1,1,extra,fields,"), "{out}");
+        assert_eq!((s.rows, s.invalid, s.first_invalid_row), (10, 7, Some(2)));
+        // Short rows are padded, long ones cut: every row lines up with the header.
+        assert!(out.contains("\n3,,,,,invalid\n"), "{out}");
+        assert!(out.contains("\n4,1,1,,,invalid\n"), "{out}");
+        assert!(out.lines().all(|l| l.split(',').count() == 6), "{out}");
     }
 
     #[test]
