@@ -40,8 +40,9 @@ pub struct Converted {
 }
 
 /// `bytes` as CSV for [`crate::replay::run`]: `None` when `bytes` is CSV already
-/// (`format` says so, or, undetermined, its first line names `v_north`); an error when
-/// nothing in it decodes as a receiver format.
+/// (`format` says so, or, undetermined, its first line names `v_north` or nothing in it
+/// decodes as a receiver log); an error when a receiver `format` was given and nothing
+/// decodes.
 pub fn convert(bytes: &[u8], format: Option<InputFormat>) -> anyhow::Result<Option<Converted>> {
     let receiver = match format {
         Some(InputFormat::Csv) => return Ok(None),
@@ -54,6 +55,8 @@ pub fn convert(bytes: &[u8], format: Option<InputFormat>) -> anyhow::Result<Opti
     let decoded = decode(bytes, receiver);
     let format = match decoded.format {
         Some(f) if !decoded.epochs.is_empty() => f,
+        // Undetermined and no receiver epochs: let the CSV reader name what is missing.
+        _ if receiver.is_none() => return Ok(None),
         _ => anyhow::bail!(
             "neither a CSV with a v_north column nor a receiver log with epochs \
              (UBX NAV-PVT, NMEA RMC/VTG, gpsd TPV); decoder: {}",
@@ -115,7 +118,8 @@ mod tests {
     fn csv_is_passed_through_and_garbage_is_an_error() {
         let csv = b"t_s,v_north,v_east\n0,1,1\n";
         assert!(convert(csv, None).unwrap().is_none());
-        assert!(convert(b"hello\nworld\n", None).is_err());
+        assert!(convert(b"hello\nworld\n", None).unwrap().is_none());
+        assert!(convert(b"hello\nworld\n", Some(InputFormat::Ubx)).is_err());
         assert!(convert(b"hello", Some(InputFormat::Csv)).unwrap().is_none());
     }
 
