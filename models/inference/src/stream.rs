@@ -604,25 +604,11 @@ mod tests {
     use super::*;
     use crate::head::Head;
     use crate::params::{Arch, ParamSet};
-    use crate::weights::{ModelMeta, FORMAT};
+    use crate::weights::ModelMeta;
     use rand::{Rng, SeedableRng};
 
     fn meta(arch: Arch, kind: ModelKind, head: Head) -> ModelMeta {
-        ModelMeta {
-            format: FORMAT.into(),
-            name: "test".into(),
-            architecture: arch,
-            activation: "gelu_tanh".into(),
-            head,
-            input_scale_mps: 1.0,
-            heading_range_deg: [0.0, 360.0],
-            sigma_scale: 1.0,
-            accuracy_sigma_scale: f32::NAN,
-            training_data: serde_json::Value::Null,
-            training: serde_json::Value::Null,
-            metrics: serde_json::Value::Null,
-            kind,
-        }
+        ModelMeta::new("test", arch, head, kind)
     }
 
     /// A random temporal model (small widths, window 4) that survives a file round trip.

@@ -132,6 +132,30 @@ pub struct ModelMeta {
     pub kind: ModelKind,
 }
 
+impl ModelMeta {
+    /// Metadata for a model made in code rather than trained on a data set (`kf`, a
+    /// temporal network before its training fills in the record): full-circle range,
+    /// unit input scale and σ scale, no speed-accuracy σ, empty provenance. The caller
+    /// sets what differs.
+    pub fn new(name: &str, architecture: Arch, head: Head, kind: ModelKind) -> Self {
+        ModelMeta {
+            format: FORMAT.into(),
+            name: name.into(),
+            architecture,
+            activation: "gelu_tanh".into(),
+            head,
+            input_scale_mps: 1.0,
+            heading_range_deg: [0.0, 360.0],
+            sigma_scale: 1.0,
+            accuracy_sigma_scale: f32::NAN,
+            training_data: serde_json::Value::Null,
+            training: serde_json::Value::Null,
+            metrics: serde_json::Value::Null,
+            kind,
+        }
+    }
+}
+
 /// Why a model could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum WeightsError {

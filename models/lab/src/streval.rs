@@ -11,7 +11,7 @@ use serde::Serialize;
 use ghnet_models::head::Head;
 use ghnet_models::params::{Arch, ParamSet};
 use ghnet_models::stream::{Epoch, StreamPredictor};
-use ghnet_models::weights::{ModelKind, ModelMeta, FORMAT};
+use ghnet_models::weights::{ModelKind, ModelMeta};
 use ghnet_models::{Model, Status};
 
 use crate::eval::wrap_deg;
@@ -46,27 +46,15 @@ pub fn kf_model(q_deg_per_sqrt_s: f32, sigma_v_mps: f32, max_gap_s: f32) -> Mode
         output: 0,
         window: 1,
     };
-    let meta = ModelMeta {
-        format: FORMAT.into(),
-        name: "kf".into(),
-        architecture: arch.clone(),
-        activation: "gelu_tanh".into(),
-        head: Head::Residual {
-            range_deg: [0.0, 360.0],
-        },
-        input_scale_mps: 1.0,
-        heading_range_deg: [0.0, 360.0],
-        sigma_scale: 1.0,
-        accuracy_sigma_scale: f32::NAN,
-        training_data: serde_json::Value::Null,
-        training: serde_json::Value::Null,
-        metrics: serde_json::Value::Null,
-        kind: ModelKind::Kf {
-            q_deg_per_sqrt_s,
-            sigma_v_mps,
-            max_gap_s,
-        },
+    let kind = ModelKind::Kf {
+        q_deg_per_sqrt_s,
+        sigma_v_mps,
+        max_gap_s,
     };
+    let head = Head::Residual {
+        range_deg: [0.0, 360.0],
+    };
+    let meta = ModelMeta::new("kf", arch.clone(), head, kind);
     Model::new(ParamSet::zeros(&arch), meta)
 }
 

@@ -35,7 +35,7 @@ use ghnet_models::head::{wrap_rad, Head};
 use ghnet_models::modes::{prepare, ModeParams, SigmaMap, SigmaMaps, Step, StepState};
 use ghnet_models::params::{Arch, ParamSet};
 use ghnet_models::stream::{inputs, Epoch, Reset, StreamPredictor, INPUTS};
-use ghnet_models::weights::{ModelKind, ModelMeta, FORMAT};
+use ghnet_models::weights::{ModelKind, ModelMeta};
 use ghnet_models::Model;
 
 use crate::logs::LogTrack;
@@ -252,27 +252,14 @@ pub fn temporal_meta(name: &str, arch: Arch, cfg: &TemporalConfig, kf: &Model) -
     else {
         panic!("the start convention comes from a kf model")
     };
-    ModelMeta {
-        format: FORMAT.into(),
-        name: name.into(),
-        architecture: arch,
-        activation: "gelu_tanh".into(),
-        head: Head::Filter,
-        input_scale_mps: 1.0,
-        heading_range_deg: [0.0, 360.0],
-        sigma_scale: 1.0,
-        accuracy_sigma_scale: f32::NAN,
-        training_data: serde_json::Value::Null,
-        training: serde_json::Value::Null,
-        metrics: serde_json::Value::Null,
-        kind: ModelKind::Temporal {
-            max_gap_s: cfg.max_gap_s,
-            q_deg_per_sqrt_s,
-            sigma_v_mps,
-            modes: cfg.modes,
-            sigma_map: SigmaMaps::default(),
-        },
-    }
+    let kind = ModelKind::Temporal {
+        max_gap_s: cfg.max_gap_s,
+        q_deg_per_sqrt_s,
+        sigma_v_mps,
+        modes: cfg.modes,
+        sigma_map: SigmaMaps::default(),
+    };
+    ModelMeta::new(name, arch, Head::Filter, kind)
 }
 
 /// One run of consecutive epochs `[c0, c0 + cols)` of the recording and its targets.
