@@ -8,24 +8,12 @@ use std::time::Duration;
 
 use ghnet_client::{
     HeadingStatus, HeadingSubscriber, OpenError, ServiceSettings, VelocityPublisher,
-    VelocitySample, VelocitySubscriber, SERVICE_SETTINGS,
+    VelocitySubscriber, SERVICE_SETTINGS,
 };
 use ghnet_testkit::{
-    assert_silent, list_nodes, now_ns, recv_answer, wait_until, ChildSubscriber, Ghnetd,
-    TestNamespace, WATCHDOG,
+    assert_silent, list_nodes, moving_sample, recv_answer, round_trip, wait_until, ChildSubscriber,
+    Ghnetd, TestNamespace, WATCHDOG,
 };
-
-fn sample(seq: u64) -> VelocitySample {
-    VelocitySample::new(now_ns(), seq, 3.0, 4.0, 0.0)
-}
-
-/// Sends `seq` on `gnss` and checks that `headings` gets exactly that answer next.
-fn round_trip(gnss: &VelocityPublisher, headings: &HeadingSubscriber, seq: u64) {
-    gnss.send(sample(seq)).unwrap();
-    let h = recv_answer(headings, WATCHDOG)
-        .unwrap_or_else(|| panic!("{}: no answer to {seq}", headings.service_name()));
-    assert_eq!(h.seq, seq, "{}", headings.service_name());
-}
 
 #[test]
 fn subscriber_kill9_daemon_goes_on_and_a_new_subscriber_is_served() {
@@ -132,9 +120,9 @@ fn a_silent_source_gets_one_stale_message_and_is_served_again() {
     ghnet_testkit::zenoh_barrier(&session, &ipc);
     let (gnss, headings) = daemon.ends("veh");
 
-    let mut last_sent = sample(0);
+    let mut last_sent = moving_sample(0);
     for seq in 0..3 {
-        last_sent = sample(seq);
+        last_sent = moving_sample(seq);
         gnss.send(last_sent).unwrap();
         let h = headings.recv_timeout(WATCHDOG).unwrap().expect("answer");
         assert_eq!(h.seq, seq);
@@ -169,7 +157,7 @@ fn a_silent_source_gets_one_stale_message_and_is_served_again() {
     assert_eq!((stats["received"], stats["answered"]), (3, 3));
 
     // Samples again: answered normally, logged once.
-    gnss.send(sample(3)).unwrap();
+    gnss.send(moving_sample(3)).unwrap();
     let h = headings.recv_timeout(WATCHDOG).unwrap().expect("answer");
     assert_eq!(h.seq, 3);
     assert_ne!(h.heading_status(), Some(HeadingStatus::Stale));
@@ -222,7 +210,7 @@ fn a_second_daemon_on_the_same_prefix_exits_naming_the_first() {
     first.kill9();
     let third = Ghnetd::builder(&ns).start();
     third.wait_until("an answer from the new daemon", || {
-        gnss.send(sample(1)).unwrap();
+        gnss.send(moving_sample(1)).unwrap();
         recv_answer(&headings, Duration::from_millis(100)).is_some_and(|h| h.seq == 1)
     });
     third.stop();

@@ -15,20 +15,8 @@ use ghnet_client::{
     SERVICE_SETTINGS,
 };
 use ghnet_testkit::{
-    find_binary, now_ns, recv_answer, run_ghnetd, wait_until, Ghnetd, TestNamespace, WATCHDOG,
+    find_binary, moving_sample, round_trip, run_ghnetd, wait_until, Ghnetd, TestNamespace,
 };
-
-fn sample(seq: u64) -> VelocitySample {
-    VelocitySample::new(now_ns(), seq, 3.0, 4.0, 0.0)
-}
-
-/// Sends `seq` on `gnss` and waits for its answer on `headings`.
-fn round_trip(gnss: &VelocityPublisher, headings: &HeadingSubscriber, seq: u64) {
-    gnss.send(sample(seq)).unwrap();
-    let h = recv_answer(headings, WATCHDOG)
-        .unwrap_or_else(|| panic!("{}: no answer to {seq}", headings.service_name()));
-    assert_eq!(h.seq, seq, "{}", headings.service_name());
-}
 
 /// Waits until `daemon`'s stats satisfy `cond`; returns them.
 fn stats_when(
@@ -103,7 +91,7 @@ fn with_a_higher_hard_limit_ghnetd_raises_the_soft_one_and_serves_150_sources() 
         s["sources"].as_object().map(|m| m.len()) == Some(150)
     });
     for (i, p) in gnss.iter().enumerate() {
-        p.send(sample(0)).unwrap();
+        p.send(moving_sample(0)).unwrap();
         daemon.wait_for_counters(&format!("s{i}"), |c| c["answered"] >= 1);
     }
     let log = daemon.stop();
@@ -145,7 +133,7 @@ fn at_a_hard_limit_of_1024_the_sources_over_it_are_reported_naming_descriptors()
         assert!(!reason.contains("InternalFailure"), "{name}: {reason}");
     }
     // Served sources answer; the others are retried (the count grows).
-    gnss[0].send(sample(0)).unwrap();
+    gnss[0].send(moving_sample(0)).unwrap();
     let first_served = stats["sources"].as_object().unwrap().keys().next().unwrap();
     daemon.wait_for_counters(first_served, |c| c["received"] >= 1);
     let some_unserved = stats["unserved"]

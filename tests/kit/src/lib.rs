@@ -53,7 +53,9 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 pub use child::{ChildPublisher, ChildSubscriber, Heading};
 pub use ghnet_client::testing::TestNamespace;
 use ghnet_client::zenoh::{self, Wait};
-use ghnet_client::{HeadingEstimate, HeadingStatus, HeadingSubscriber, IpcConfig};
+use ghnet_client::{
+    HeadingEstimate, HeadingStatus, HeadingSubscriber, IpcConfig, VelocityPublisher, VelocitySample,
+};
 use ghnet_models::Model;
 pub use ghnetd::{run_ghnetd, Counters, Ghnetd, GhnetdBuilder, Listen, OneSource};
 
@@ -106,6 +108,21 @@ pub fn recv_answer(headings: &HeadingSubscriber, timeout: Duration) -> Option<He
             return Some(h);
         }
     }
+}
+
+/// A moving sample (3 m/s north, 4 m/s east) with sequence number `seq`, stamped now:
+/// the plain input of tests about delivery rather than heading.
+pub fn moving_sample(seq: u64) -> VelocitySample {
+    VelocitySample::new(now_ns(), seq, 3.0, 4.0, 0.0)
+}
+
+/// Sends [`moving_sample`]`(seq)` on `gnss` and checks that the next answer on
+/// `headings` (skipping `Stale`) is exactly that sample's.
+pub fn round_trip(gnss: &VelocityPublisher, headings: &HeadingSubscriber, seq: u64) {
+    gnss.send(moving_sample(seq)).unwrap();
+    let h = recv_answer(headings, WATCHDOG)
+        .unwrap_or_else(|| panic!("{}: no answer to {seq}", headings.service_name()));
+    assert_eq!(h.seq, seq, "{}", headings.service_name());
 }
 
 /// Asserts that nothing more arrives on `headings` within `quiet` (after the answers a
