@@ -88,7 +88,7 @@ pub struct ModeParams {
     pub fast_speed: f32,
     /// Seconds above `fast_speed` that make a vehicle a car.
     pub fast_secs: f32,
-    /// Glitch gate: only above this speed, m/s.
+    /// Glitch gate: above this speed, m/s (a standing car at any speed).
     pub gate_speed: f32,
     /// Glitch gate: largest plausible acceleration, m/s².
     pub a_max: f32,
@@ -181,10 +181,6 @@ pub struct StepState {
     pub prev_v: [f32; 2],
     /// Epochs ignored as glitches in a row.
     pub skips: u8,
-    /// Variance (radians²) a misread direction adds to the heading: `p(1−p)·π²` of the
-    /// last moving epoch's reverse decision, kept through stops (the held heading came
-    /// from it).
-    pub flip_var: f32,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -204,7 +200,6 @@ impl StepState {
         prev_speed: 0.0,
         prev_v: [f32::NAN; 2],
         skips: 0,
-        flip_var: 0.0,
         vehicle: Vehicle::UNKNOWN,
     };
 
@@ -337,7 +332,9 @@ fn glitch(
     sig: f32,
     dt: f32,
 ) -> bool {
-    if !(st.prev_v[0].is_finite() && speed > mp.gate_speed && dt > 0.0) {
+    // A standing car is gated at any speed: it cannot leap from rest either.
+    let gated = speed > mp.gate_speed || (st.vehicle.car && st.t_still > 0.0);
+    if !(st.prev_v[0].is_finite() && gated && dt > 0.0) {
         return false;
     }
     let dv = (vn - st.prev_v[0]).hypot(ve - st.prev_v[1]);
@@ -401,10 +398,11 @@ pub fn prepare(
     let w = mp.k_max * shat.min(mp.a_lat / (mp.k_max * shat.max(1e-3)));
     let p = ((2.0 * st.log_sigma).exp() + (q * q + w * w) * dt).min(cap2);
     let moving = r < mp.moving_r;
-    if moving {
+    // The gate first: a glitch must neither change the direction nor count as driving.
+    step.glitch = glitch(mp, st, vn, ve, speed, sig, dt);
+    if moving && !step.glitch {
         direction_rules(mp, st, course, speed, p, dt);
     }
-    step.glitch = glitch(mp, st, vn, ve, speed, sig, dt);
     step.prior = st.psi;
     step.p = p;
     step.r2 = r * r;
@@ -485,7 +483,7 @@ pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
         }
     };
     let log_sigma = 0.5 * var.max(1e-12).ln();
-    advance_clocks(st, step, dt, gain, p_reverse);
+    advance_clocks(st, step, dt, gain);
     st.psi = wrap_rad(psi);
     st.log_sigma = log_sigma.min(cap.ln());
     st.has_prior = true;
@@ -497,11 +495,10 @@ pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
     }
 }
 
-fn advance_clocks(st: &mut StepState, step: &Step, dt: f32, gain: f32, p_reverse: f32) {
+fn advance_clocks(st: &mut StepState, step: &Step, dt: f32, gain: f32) {
     st.t_still = if step.moving { 0.0 } else { st.t_still + dt };
     if step.moving && !step.hold {
         st.t_mode += dt;
-        st.flip_var = p_reverse * (1.0 - p_reverse) * std::f32::consts::PI.powi(2);
     }
     st.prev_speed = step.speed;
     if gain > 0.0 || !st.prev_v[0].is_finite() {

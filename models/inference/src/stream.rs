@@ -208,9 +208,17 @@ pub fn advance(
 }
 
 /// The reported σ (degrees) of a temporal step: the filter's `log σ` plus the
-/// network's correction `y2`, with the variance of a misread direction
-/// ([`StepState::flip_var`]) added, through the calibration map of the vehicle's class;
-/// the uniform σ while the step only holds (before the first motion, as `kf` answers).
+/// network's correction `y2`, through the calibration map of the vehicle's class and
+/// state; the uniform σ while the step only holds (before the first motion, as `kf`
+/// answers).
+///
+/// A standing car's σ is the filter's alone: its heading cannot change, so the σ of a
+/// held heading is the one it stopped with, growing with time (`q_still`), and the
+/// network's per-epoch correction (trained on noise it cannot see through) would only
+/// make it jitter. A misread direction is not added as a variance: it is a 180° jump,
+/// not a spread, and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior)
+/// swamped the filter's σ so that the map could no longer tell a good epoch from a
+/// poor one; the calibration map's tails cover misreads instead.
 pub fn reported_sigma(
     step: &Step,
     log_sigma: f32,
@@ -221,11 +229,15 @@ pub fn reported_sigma(
     if step.hold {
         return MAX_STD_DEG;
     }
+    let y2 = if step.moving || !st.vehicle.car {
+        y2
+    } else {
+        0.0
+    };
     let s = (log_sigma + y2)
         .clamp(crate::head::LOG_SIGMA_MIN, crate::head::LOG_SIGMA_MAX)
         .exp();
-    let raw = (s * s + st.flip_var).sqrt().to_degrees();
-    maps.apply(st.vehicle.car, step.moving, raw)
+    maps.apply(st.vehicle.car, step.moving, s.to_degrees())
 }
 
 /// The temporal head: the fully connected layers collapsed to `y = W·[f_t, …, f_{t−W+1}]
@@ -276,14 +288,24 @@ impl WindowHead {
         let cols = w * c;
         for (o, y) in out.iter_mut().enumerate().take(self.outputs) {
             let row = &self.w[o * cols..(o + 1) * cols];
-            let mut acc = self.b[o];
+            // Eight partial sums: one running sum is a chain of dependent additions
+            // the compiler may not reorder; eight independent ones vectorise.
+            let mut acc = [0.0f32; 8];
             for k in 0..filled.min(w) {
                 let slot = (newest + w - k) % w;
                 let f = &ring[slot * c..(slot + 1) * c];
                 let wk = &row[k * c..(k + 1) * c];
-                acc += wk.iter().zip(f).map(|(a, b)| a * b).sum::<f32>();
+                let (fc, wc) = (f.chunks_exact(8), wk.chunks_exact(8));
+                for (a, b) in fc.remainder().iter().zip(wc.remainder()) {
+                    acc[0] += a * b;
+                }
+                for (fs, ws) in fc.zip(wc) {
+                    for l in 0..8 {
+                        acc[l] += fs[l] * ws[l];
+                    }
+                }
             }
-            *y = acc;
+            *y = self.b[o] + acc.iter().sum::<f32>();
         }
     }
 }
