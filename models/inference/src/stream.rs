@@ -823,6 +823,50 @@ mod tests {
         }
     }
 
+    /// The shipped default holds a car that stops: after driving north-east at 8 m/s
+    /// (10 Hz, 0.05 m/s noise) it answers `Held` within a degree of where it stopped,
+    /// with a σ that never shrinks while it stands, and drives off again `Ok`.
+    #[test]
+    fn ghnet_temporal_holds_a_stopped_car_with_a_sigma_that_never_shrinks() {
+        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
+        let mut sp = StreamPredictor::new(model);
+        let mut h = sp.history();
+        let mut seed = 7u32;
+        let mut noise = move || {
+            // xorshift, uniform in ±0.0866 m/s: σ = 0.05 m/s per axis.
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            (seed as f32 / u32::MAX as f32 - 0.5) * 0.1732
+        };
+        let mut ep = |i: usize, speed: f32| Epoch {
+            t_s: i as f64 * 0.1,
+            v_north: speed * 45f32.to_radians().cos() + noise(),
+            v_east: speed * 45f32.to_radians().sin() + noise(),
+            speed_acc: 0.05,
+        };
+        for i in 0..300 {
+            sp.predict(&mut h, &ep(i, 8.0));
+        }
+        let mut last_std = 0.0;
+        for i in 300..900 {
+            let p = sp.predict(&mut h, &ep(i, 0.0));
+            if i < 320 {
+                continue; // coming to rest: the noise can still look like motion
+            }
+            assert_eq!(p.status, Status::Held, "{i} {p:?}");
+            assert!((p.heading_deg - 45.0).abs() < 1.0, "{i} {p:?}");
+            assert!(
+                p.std_deg >= last_std,
+                "{i}: σ {} after {last_std}",
+                p.std_deg
+            );
+            last_std = p.std_deg;
+        }
+        let p = (900..960).map(|i| sp.predict(&mut h, &ep(i, 8.0))).last();
+        assert_eq!(p.expect("epochs").status, Status::Ok);
+    }
+
     #[test]
     fn stateless_predictor_answers_stateful_models_as_first_epochs() {
         for model in [Arc::new(kf_model()), Arc::new(temporal_model(3))] {
