@@ -19,7 +19,8 @@
 //!   paths, source names and `ghnet infer` arguments.
 //! - `soak` — 100 sources × 10 Hz × 60 s through `ghnet_tools::soak`.
 //! - `gnss` — every real receiver capture through the `ghnet-gnss` bridge; `fleet` —
-//!   two vehicles through a Zenoh router, one wildcard consumer, a router restart.
+//!   two vehicles through a Zenoh router, one wildcard consumer, a router restart;
+//!   again with each vehicle and the router in network namespaces of their own.
 //!
 //! The kit finds `ghnetd` and its own bins next to this executable: `cargo test
 //! --workspace` builds them; for this crate alone, `cargo build -p ghnetd -p

@@ -1,7 +1,9 @@
 //! Processes of the kit: the handle every spawned process lives in ([`Process`]:
-//! dies with the test, killed and reaped on drop), and the child publisher and
-//! subscriber (the kit's bins) that tests `kill -9`.
+//! dies with the test, killed and reaped on drop), the child publisher and
+//! subscriber (the kit's bins) that tests `kill -9`, and the Zenoh router of the fleet
+//! tests ([`ChildRouter`]).
 
+use std::ffi::OsStr;
 use std::io::Read;
 use std::os::unix::process::CommandExt;
 use std::process::{Child, ChildStdout, Command, ExitStatus, Stdio};
@@ -122,6 +124,42 @@ fn kit_binary(name: &str) -> std::path::PathBuf {
     find_binary(name).unwrap_or_else(|e| panic!("{e:#}"))
 }
 
+/// `program` run under `wrapper`, a command that execs its arguments (e.g. `["ip",
+/// "netns", "exec", "<name>"]`); `program` alone for an empty wrapper.
+pub(crate) fn wrapped(wrapper: &[impl AsRef<OsStr>], program: impl AsRef<OsStr>) -> Command {
+    match wrapper.split_first() {
+        Some((w, rest)) => {
+            let mut c = Command::new(w);
+            c.args(rest).arg(program);
+            c
+        }
+        None => Command::new(program),
+    }
+}
+
+/// Spawns a kit bin that prints `ready` once it is set up, then lines of its own;
+/// returns once `ready` came, with a channel of the lines after it.
+fn spawn_ready(wrapper: &[&str], bin: &str, args: &[&str]) -> (Process, mpsc::Receiver<String>) {
+    let mut cmd = wrapped(wrapper, kit_binary(bin));
+    cmd.args(args).stdin(Stdio::null()).stdout(Stdio::piped());
+    let process = Process::spawn(&mut cmd).unwrap_or_else(|e| panic!("{e:#}"));
+    let stdout = process.take_stdout().expect("piped stdout");
+    let (tx, lines) = mpsc::channel();
+    // Only reads a pipe; the child's lifetime stays tied to the test thread.
+    std::thread::spawn(move || {
+        use std::io::BufRead;
+        for line in std::io::BufReader::new(stdout).lines() {
+            let Ok(line) = line else { break };
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let first = lines.recv_timeout(WATCHDOG).ok();
+    assert_eq!(first.as_deref(), Some("ready"), "{bin} start");
+    (process, lines)
+}
+
 /// A `ghnet-test-publisher` process: sends `VelocitySample`s for one source (v_north 3,
 /// v_east 4, speed accuracy 0.1, seq from `first_seq` up, real timestamps) at a fixed
 /// rate until killed. Killed and reaped on drop.
@@ -133,10 +171,27 @@ pub struct ChildPublisher {
 impl ChildPublisher {
     /// Starts publishing `source` in `ns`.
     pub fn spawn(ns: &TestNamespace, source: &str, first_seq: u64, rate_hz: u32) -> Self {
-        let mut cmd = Command::new(kit_binary("ghnet-test-publisher"));
+        Self::spawn_wrapped(&[], ns, None, source, first_seq, rate_hz)
+    }
+
+    /// [`spawn`](Self::spawn) under `wrapper` (e.g. [`NetNamespace::exec`]: a
+    /// vehicle's receiver on the vehicle's "host"; iceoryx2 itself does not see network
+    /// namespaces), for a daemon with `service_prefix` (`None`: the default).
+    ///
+    /// [`NetNamespace::exec`]: crate::NetNamespace::exec
+    pub fn spawn_wrapped(
+        wrapper: &[&str],
+        ns: &TestNamespace,
+        service_prefix: Option<&str>,
+        source: &str,
+        first_seq: u64,
+        rate_hz: u32,
+    ) -> Self {
+        let mut cmd = wrapped(wrapper, kit_binary("ghnet-test-publisher"));
         cmd.arg(ns.global_prefix())
             .arg(ns.root_path())
             .args([source, &first_seq.to_string(), &rate_hz.to_string()])
+            .args(service_prefix)
             .stdin(Stdio::null())
             .stdout(Stdio::null());
         let process = Process::spawn(&mut cmd).unwrap_or_else(|e| panic!("{e:#}"));
@@ -191,33 +246,8 @@ impl ChildSubscriber {
     }
 
     fn start(wrapper: &[&str], args: &[&str]) -> Self {
-        let binary = kit_binary("ghnet-test-subscriber");
-        let mut cmd = match wrapper.split_first() {
-            Some((program, rest)) => {
-                let mut c = Command::new(program);
-                c.args(rest).arg(binary);
-                c
-            }
-            None => Command::new(binary),
-        };
-        cmd.args(args).stdin(Stdio::null()).stdout(Stdio::piped());
-        let process = Process::spawn(&mut cmd).unwrap_or_else(|e| panic!("{e:#}"));
-        let stdout = process.take_stdout().expect("piped stdout");
-        let (tx, lines) = mpsc::channel();
-        // Only reads a pipe; the child's lifetime stays tied to the test thread.
-        std::thread::spawn(move || {
-            use std::io::BufRead;
-            for line in std::io::BufReader::new(stdout).lines() {
-                let Ok(line) = line else { break };
-                if tx.send(line).is_err() {
-                    break;
-                }
-            }
-        });
-        let this = Self { process, lines };
-        let first = this.lines.recv_timeout(WATCHDOG).ok();
-        assert_eq!(first.as_deref(), Some("ready"), "test subscriber start");
-        this
+        let (process, lines) = spawn_ready(wrapper, "ghnet-test-subscriber", args);
+        Self { process, lines }
     }
 
     /// The next heading, `None` if the process ended or [`WATCHDOG`] passed.
@@ -251,6 +281,34 @@ impl ChildSubscriber {
     }
 
     /// `kill -9` and reap.
+    pub fn kill9(self) {
+        self.process.kill9();
+    }
+}
+
+/// A `ghnet-test-router` process: a Zenoh router (the zenoh crate in router mode, as
+/// `zenohd` runs it, no scouting) listening on the endpoints given, until killed. A
+/// process rather than a session in the test, so that it can run in a network
+/// namespace of its own and be killed like a real router. Killed and reaped on drop.
+#[derive(Debug)]
+pub struct ChildRouter {
+    process: Process,
+}
+
+impl ChildRouter {
+    /// Starts a router listening on `endpoints`, under `wrapper` (e.g.
+    /// [`NetNamespace::exec`](crate::NetNamespace::exec)); returns once it listens.
+    pub fn spawn(wrapper: &[&str], endpoints: &[&str]) -> Self {
+        let (process, _lines) = spawn_ready(wrapper, "ghnet-test-router", endpoints);
+        Self { process }
+    }
+
+    /// Whether it is still running.
+    pub fn is_running(&self) -> bool {
+        self.process.exit_status().is_none()
+    }
+
+    /// `kill -9` and reap: the router crashes, its connections drop.
     pub fn kill9(self) {
         self.process.kill9();
     }

@@ -209,14 +209,7 @@ impl<'a> GhnetdBuilder<'a> {
             Some((p, a)) => (p.clone(), a.clone()),
             None => (ghnetd_binary()?, Vec::new()),
         };
-        let mut cmd = match self.wrapper.split_first() {
-            Some((w, rest)) => {
-                let mut c = Command::new(w);
-                c.args(rest).arg(program);
-                c
-            }
-            None => Command::new(program),
-        };
+        let mut cmd = crate::child::wrapped(&self.wrapper, program);
         cmd.args(program_args)
             .arg("--iceoryx2-global-prefix")
             .arg(self.ns.global_prefix())

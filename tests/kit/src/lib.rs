@@ -17,7 +17,11 @@
 //!   daemon serving one static source, and that source's publisher and subscriber).
 //! - [`child`] — [`ChildPublisher`] and [`ChildSubscriber`], a GNSS source and a
 //!   heading consumer in processes of their own (the kit's bins
-//!   `ghnet-test-publisher`, `ghnet-test-subscriber`) that a test can `kill -9`.
+//!   `ghnet-test-publisher`, `ghnet-test-subscriber`) that a test can `kill -9`;
+//!   [`ChildRouter`], a Zenoh router process (`ghnet-test-router`) for the fleet.
+//! - [`netns`] — [`NetNamespace`], a network namespace as another "host" (unique
+//!   names, deleted on drop, leftovers of killed runs swept), veth pairs between
+//!   them; needs root and `ip`.
 //! - [`wait_until`], [`WATCHDOG`] — bounded waits: a hang becomes a failure, no
 //!   duration is ever asserted.
 //! - [`recv_answer`] — the next heading that answers a sample (skipping `Stale`);
@@ -28,7 +32,7 @@
 //!
 //! # Binaries
 //!
-//! `ghnetd` and the kit's two bins are found next to the running executable
+//! `ghnetd` and the kit's bins are found next to the running executable
 //! (`target/<profile>/`, see [`find_binary`]). `cargo test --workspace` builds them;
 //! for one test crate alone, `cargo build -p ghnetd -p ghnet-testkit` first.
 //! `GHNETD_BIN` points at another daemon build.
@@ -45,12 +49,13 @@
 
 pub mod child;
 pub mod ghnetd;
+pub mod netns;
 
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-pub use child::{ChildPublisher, ChildSubscriber, Heading};
+pub use child::{ChildPublisher, ChildRouter, ChildSubscriber, Heading};
 pub use ghnet_client::testing::TestNamespace;
 use ghnet_client::zenoh::{self, Wait};
 use ghnet_client::{
@@ -58,6 +63,7 @@ use ghnet_client::{
 };
 use ghnet_models::Model;
 pub use ghnetd::{run_ghnetd, Counters, Ghnetd, GhnetdBuilder, Listen, OneSource};
+pub use netns::NetNamespace;
 
 /// Upper bound of every wait. Generous on purpose: tests run in parallel on small
 /// machines; this only turns a hang into a failure, it is not a performance limit.

@@ -18,6 +18,7 @@ fn bins_print_their_usage_and_are_found_next_to_the_tests() {
             "ghnet-test-subscriber",
             env!("CARGO_BIN_EXE_ghnet-test-subscriber"),
         ),
+        ("ghnet-test-router", env!("CARGO_BIN_EXE_ghnet-test-router")),
     ];
     for (name, path) in bins {
         let out = Command::new(path).output().expect("run the bin");
