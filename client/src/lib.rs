@@ -29,7 +29,8 @@
 //! - [`waitset`] — [`wait_for_listeners`]: which of many receivers woke a `WaitSet`,
 //!   by position, for a thread that serves them all.
 //! - `testing` (feature `testing`) — `testing::TestNamespace`, a private iceoryx2
-//!   namespace per test that cleans up after itself.
+//!   namespace per test that cleans up after itself; helpers tests of several crates
+//!   share.
 //!
 //! # Features
 //!
