@@ -26,8 +26,11 @@
 //!   (presence, stats, model) and `peer_config`, the loopback-only Zenoh config.
 //! - [`signals`] — [`termination_requested`]: Ctrl-C handling for programs using the
 //!   helpers (iceoryx2 captures SIGINT/SIGTERM once it is in use).
+//! - [`waitset`] — [`wait_for_listeners`]: which of many receivers woke a `WaitSet`,
+//!   by position, for a thread that serves them all.
 //! - `testing` (feature `testing`) — `testing::TestNamespace`, a private iceoryx2
-//!   namespace per test that cleans up after itself.
+//!   namespace per test that cleans up after itself; helpers tests of several crates
+//!   share.
 //!
 //! # Features
 //!
@@ -71,6 +74,7 @@ pub mod settings;
 pub mod signals;
 #[cfg(feature = "testing")]
 pub mod testing;
+pub mod waitset;
 pub mod wire;
 
 #[cfg(feature = "zenoh")]
@@ -86,6 +90,7 @@ pub use names::{
 pub use remote::{peer_config, ZenohHeadingSubscriber, ZenohOpenError, DEFAULT_ZENOH_PORT};
 pub use settings::{Message, ServiceSettings, SERVICE_SETTINGS};
 pub use signals::termination_requested;
+pub use waitset::wait_for_listeners;
 pub use wire::{flags, CodecError, HeadingEstimate, HeadingStatus, VelocitySample, MODEL_NAME_LEN};
 
 /// The iceoryx2 crate this wire is built on, re-exported so users (and the daemon)

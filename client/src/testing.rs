@@ -11,16 +11,22 @@
 //!
 //! This is the one namespace type of ghnet's tests: the daemon's in-process tests,
 //! the cross-process test kit (`ghnet-testkit`), the soak and perf tools and the
-//! demo's `--isolated` mode all use it.
+//! demo's `--isolated` mode all use it. Beside it, what tests of several crates share:
+//! [`foreign_service`], a service as a non-ghnet client makes it, and
+//! [`assert_success`] for commands a test runs.
 
 pub mod alloc;
 
 use std::hash::{BuildHasher, Hasher};
 use std::path::{Path, PathBuf};
+use std::process::Output;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Mutex, Once};
 
-use crate::IpcConfig;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::publish_subscribe::PortFactory;
+
+use crate::{IpcConfig, Message};
 
 /// Starts every name this module makes, in `/dev/shm` and in the temp dir
 /// (`ght<pid>x…`), so a sweep finds them and their process id. Short on purpose:
@@ -94,6 +100,15 @@ impl TestNamespace {
             .expect("generated names are always valid")
     }
 
+    /// A plain iceoryx2 node in this namespace, as a foreign (non-ghnet) client would
+    /// have, for [`foreign_service`].
+    pub fn foreign_node(&self) -> Node<ipc::Service> {
+        NodeBuilder::new()
+            .config(&self.ipc().iceoryx2_config())
+            .create::<ipc::Service>()
+            .expect("an iceoryx2 node in the test namespace")
+    }
+
     /// A fresh, empty directory next to the root path, for what a test keeps beside
     /// the namespace (a daemon's log, a Zenoh unix socket, config files). Removed
     /// with the namespace, and by the sweep after a crashed run; not inside the root
@@ -108,6 +123,34 @@ impl TestNamespace {
         dirs.push(dir.clone());
         dir
     }
+}
+
+/// Opens or creates the publish-subscribe service `service` for `T` on `node` the way
+/// a foreign iceoryx2 client would: under any name, even one ghnet's naming rules
+/// refuse, and with iceoryx2's default settings instead of ghnet's
+/// [`SERVICE_SETTINGS`](crate::SERVICE_SETTINGS). For tests of what ghnet makes of
+/// services it did not create.
+pub fn foreign_service<T: Message>(
+    node: &Node<ipc::Service>,
+    service: &str,
+) -> PortFactory<ipc::Service, T, ()> {
+    let name = ServiceName::new(service).expect("an iceoryx2 service name");
+    node.service_builder(&name)
+        .publish_subscribe::<T>()
+        .open_or_create()
+        .expect("a foreign service with iceoryx2's defaults")
+}
+
+/// Asserts that a child process (`what`: its name and the case, e.g. a capture's file)
+/// exited successfully; the message carries its exit status and stderr, which is all
+/// a failing command-line test has to be read by.
+pub fn assert_success(out: &Output, what: &str) {
+    assert!(
+        out.status.success(),
+        "{what}: {}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 impl Drop for TestNamespace {

@@ -3,8 +3,7 @@
 
 use std::time::{Duration, Instant};
 
-use ghnet_client::iceoryx2::prelude::*;
-use ghnet_client::testing::TestNamespace;
+use ghnet_client::testing::{foreign_service, TestNamespace};
 use ghnet_client::{
     HeadingEstimate, HeadingPublisher, HeadingSubscriber, OpenError, VelocityPublisher,
     VelocitySample, VelocitySubscriber, SERVICE_SETTINGS,
@@ -105,16 +104,9 @@ fn service_created_with_smaller_limits_is_refused() {
     // service with iceoryx2 defaults (buffer 2); asking for more on open fails.
     let ns = TestNamespace::new("limits");
     let ipc = ns.ipc();
-    let node = NodeBuilder::new()
-        .config(&ipc.iceoryx2_config())
-        .create::<ipc::Service>()
-        .unwrap();
-    let name = ServiceName::new(&ipc.velocity_service("gnss0").unwrap()).unwrap();
-    let _foreign = node
-        .service_builder(&name)
-        .publish_subscribe::<VelocitySample>()
-        .open_or_create()
-        .unwrap();
+    let node = ns.foreign_node();
+    let name = ipc.velocity_service("gnss0").unwrap();
+    let _foreign = foreign_service::<VelocitySample>(&node, &name);
     let err = VelocityPublisher::new(&ipc, "gnss0")
         .err()
         .expect("open must fail");

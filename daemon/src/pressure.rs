@@ -204,18 +204,17 @@ fn open_fds() -> u64 {
 
 /// Bytes free for an unprivileged writer on the filesystem of `dir`.
 pub(crate) fn shm_free(dir: &Path) -> Option<u64> {
-    use std::os::unix::ffi::OsStrExt;
-    let path = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
-    // SAFETY: statvfs writes only into `st`; `path` is a valid C string.
-    let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
-    if unsafe { libc::statvfs(path.as_ptr(), &mut st) } != 0 {
-        return None;
-    }
-    Some(st.f_bavail as u64 * st.f_frsize as u64)
+    fs_space(dir).map(|(free, _)| free)
 }
 
 /// Size of the filesystem of `dir`, bytes.
 pub(crate) fn fs_size(dir: &Path) -> Option<u64> {
+    fs_space(dir).map(|(_, size)| size)
+}
+
+/// Bytes free for an unprivileged writer and the size, of the filesystem of `dir`
+/// (statvfs(3)); `None` when it cannot be asked (no such directory).
+fn fs_space(dir: &Path) -> Option<(u64, u64)> {
     use std::os::unix::ffi::OsStrExt;
     let path = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
     // SAFETY: statvfs writes only into `st`; `path` is a valid C string.
@@ -223,7 +222,8 @@ pub(crate) fn fs_size(dir: &Path) -> Option<u64> {
     if unsafe { libc::statvfs(path.as_ptr(), &mut st) } != 0 {
         return None;
     }
-    Some(st.f_blocks as u64 * st.f_frsize as u64)
+    let block = st.f_frsize as u64;
+    Some((st.f_bavail as u64 * block, st.f_blocks as u64 * block))
 }
 
 /// Bytes of the files whose name starts with `prefix` in `dir` (their sizes, not the

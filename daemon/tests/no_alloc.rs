@@ -26,7 +26,8 @@ use common::{unix_endpoint, wait_until, InProcess, WATCHDOG};
 use ghnet_client::iceoryx2::prelude::*;
 use ghnet_client::zenoh::{self, Wait};
 use ghnet_client::{
-    encode_zenoh, HeadingEstimate, HeadingSubscriber, IpcConfig, VelocityPublisher, VelocitySample,
+    encode_zenoh, wait_for_listeners, HeadingEstimate, HeadingSubscriber, IpcConfig,
+    VelocityPublisher, VelocitySample,
 };
 
 /// Allowed excess of ghnetd over the raw loop, per sample, both the fewest of
@@ -351,15 +352,7 @@ fn raw_server(ipc: &IpcConfig, endpoint: &str, stop: &AtomicBool) {
     count_this_thread();
     while !stop.load(Relaxed) {
         fired.clear();
-        let on_event = |id: WaitSetAttachmentId<ipc::Service>| {
-            if let Some(i) = guards.iter().position(|g| id.has_event_from(g)) {
-                fired.push(i);
-            }
-            CallbackProgression::Continue
-        };
-        waitset
-            .wait_and_process_once_with_timeout(on_event, Duration::from_millis(100))
-            .unwrap();
+        wait_for_listeners(&waitset, &guards, Duration::from_millis(100), &mut fired).unwrap();
         round.clear();
         for &f in &fired {
             ports[f].listener.try_wait(|_| {}).unwrap();

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 
 use ghnet_client::{HeadingStatus, HeadingSubscriber};
-use ghnet_testkit::{find_binary, recv_answer, Ghnetd, TestNamespace};
+use ghnet_testkit::{assert_success, find_binary, recv_answer, Ghnetd, TestNamespace};
 
 fn data_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../client/receivers/tests/data")
@@ -53,12 +53,7 @@ fn bridge(ns: &TestNamespace, source: &str, file: &str) -> Child {
 /// Waits for the bridge to end and checks it succeeded.
 fn finish(bridge: Child, file: &str) {
     let out = bridge.wait_with_output().expect("wait for ghnet-gnss");
-    assert!(
-        out.status.success(),
-        "{file}: {:?}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out, file);
 }
 
 /// The statuses of every answer on `headings` until the bridge's `epochs` are in.

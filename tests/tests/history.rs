@@ -36,6 +36,47 @@ fn moving(t0: u64, seq: u64, t_s: f64, speed: f32, course_deg: f32) -> VelocityS
     v
 }
 
+/// Drives 6 m/s towards `course_deg` for 10 s (1 Hz, sequence numbers from
+/// `first_seq`) and stops: the history knows a heading, so the stop is `Held`.
+fn drive_and_stop(
+    gnss: &VelocityPublisher,
+    headings: &HeadingSubscriber,
+    t0: u64,
+    first_seq: u64,
+    course_deg: f32,
+) {
+    for i in 0..10 {
+        ask(
+            gnss,
+            headings,
+            moving(t0, first_seq + i, i as f64, 6.0, course_deg),
+        );
+    }
+    let held = ask(gnss, headings, moving(t0, first_seq + 10, 10.0, 0.0, 0.0));
+    assert_eq!(held.heading_status(), Some(HeadingStatus::Held), "{held:?}");
+}
+
+/// A new publisher on `source` (another process, after [`drive_and_stop`]) is served,
+/// and its first sample, still at 11 s, is `Stationary`: the old history was not
+/// carried over, so there is nothing to hold. Returns the publisher to keep it alive.
+fn back_with_a_fresh_history(
+    daemon: &Ghnetd,
+    source: &str,
+    headings: &HeadingSubscriber,
+    t0: u64,
+    seq: u64,
+) -> VelocityPublisher {
+    let gnss = VelocityPublisher::new(daemon.ipc(), source).unwrap();
+    daemon.wait_serving(&gnss);
+    let fresh = ask(&gnss, headings, moving(t0, seq, 11.0, 0.0, 0.0));
+    assert_eq!(
+        fresh.heading_status(),
+        Some(HeadingStatus::Stationary),
+        "{fresh:?}"
+    );
+    gnss
+}
+
 /// What ghnetd feeds the model for a sample: time in seconds from `timestamp_ns`.
 fn epoch(s: &VelocitySample) -> Epoch {
     Epoch {
@@ -94,23 +135,19 @@ fn a_stopped_car_is_held_with_a_growing_sigma() {
     let one = start("held", flag, &[]);
     let t0 = now_ns();
     let mut seq = 0;
-    for i in 0..20 {
-        let h = ask(
-            &one.gnss,
-            &one.headings,
-            moving(t0, seq, i as f64 / 10.0, 8.0, 90.0),
-        );
-        assert_ne!(h.heading_status(), Some(HeadingStatus::Held), "{h:?}");
+    // Sample `i` (10 Hz), the next sequence number.
+    let mut at = |i: u64, speed: f32, course_deg: f32| {
+        let s = moving(t0, seq, i as f64 / 10.0, speed, course_deg);
         seq += 1;
+        ask(&one.gnss, &one.headings, s)
+    };
+    for i in 0..20 {
+        let h = at(i, 8.0, 90.0);
+        assert_ne!(h.heading_status(), Some(HeadingStatus::Held), "{h:?}");
     }
     let mut last_std = 0.0;
     for i in 20..30 {
-        let h = ask(
-            &one.gnss,
-            &one.headings,
-            moving(t0, seq, i as f64 / 10.0, 0.01, 200.0),
-        );
-        seq += 1;
+        let h = at(i, 0.01, 200.0);
         assert_eq!(
             h.heading_status(),
             Some(HeadingStatus::Held),
@@ -225,15 +262,7 @@ fn a_restarted_publisher_gets_a_fresh_history() {
     let (_, flag) = stateful_model();
     let one = start("restart", flag, &[]);
     let t0 = now_ns();
-    for seq in 0..10 {
-        ask(
-            &one.gnss,
-            &one.headings,
-            moving(t0, 100 + seq, seq as f64, 6.0, 300.0),
-        );
-    }
-    let held = ask(&one.gnss, &one.headings, moving(t0, 110, 10.0, 0.0, 0.0));
-    assert_eq!(held.heading_status(), Some(HeadingStatus::Held), "{held:?}");
+    drive_and_stop(&one.gnss, &one.headings, t0, 100, 300.0);
     let OneSource {
         ns: _ns,
         daemon,
@@ -241,14 +270,7 @@ fn a_restarted_publisher_gets_a_fresh_history() {
         headings,
     } = one;
     drop(gnss);
-    let gnss = VelocityPublisher::new(daemon.ipc(), "restart").unwrap();
-    daemon.wait_serving(&gnss);
-    let fresh = ask(&gnss, &headings, moving(t0, 0, 11.0, 0.0, 0.0));
-    assert_eq!(
-        fresh.heading_status(),
-        Some(HeadingStatus::Stationary),
-        "{fresh:?}"
-    );
+    let _gnss = back_with_a_fresh_history(&daemon, "restart", &headings, t0, 0);
     let c = daemon.wait_for_counters("restart", |c| c["received"] == 12);
     assert_eq!((c["resets_restart"], c["resets_gap"]), (1, 0), "{c:?}");
 }
@@ -266,23 +288,12 @@ fn a_dropped_source_comes_back_with_a_fresh_history() {
     let daemon = b.start();
     let t0 = now_ns();
     let (gnss, headings) = daemon.ends("comeback");
-    for seq in 0..10 {
-        ask(&gnss, &headings, moving(t0, seq, seq as f64, 6.0, 10.0));
-    }
-    let held = ask(&gnss, &headings, moving(t0, 10, 10.0, 0.0, 0.0));
-    assert_eq!(held.heading_status(), Some(HeadingStatus::Held), "{held:?}");
+    drive_and_stop(&gnss, &headings, t0, 0, 10.0);
     drop(gnss);
     daemon.wait_until("the source is dropped", || {
         daemon.stats()["sources"]["comeback"]["served"] == false
     });
-    let gnss = VelocityPublisher::new(daemon.ipc(), "comeback").unwrap();
-    daemon.wait_serving(&gnss);
-    let fresh = ask(&gnss, &headings, moving(t0, 11, 11.0, 0.0, 0.0));
-    assert_eq!(
-        fresh.heading_status(),
-        Some(HeadingStatus::Stationary),
-        "{fresh:?}"
-    );
+    let _gnss = back_with_a_fresh_history(&daemon, "comeback", &headings, t0, 11);
     let c = daemon.wait_for_counters("comeback", |c| c["received"] == 12);
     assert_eq!(c["resets_restart"], 1, "{c:?}");
 }

@@ -9,13 +9,13 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use ghnet_client::iceoryx2::prelude::*;
 use ghnet_client::{
     HeadingSubscriber, ServiceSettings, VelocityPublisher, VelocitySample, VelocitySubscriber,
     SERVICE_SETTINGS,
 };
 use ghnet_testkit::{
-    find_binary, moving_sample, round_trip, run_ghnetd, wait_until, Ghnetd, TestNamespace,
+    find_binary, foreign_service, moving_sample, round_trip, run_ghnetd, wait_until, Ghnetd,
+    TestNamespace,
 };
 
 /// Waits until `daemon`'s stats satisfy `cond`; returns them.
@@ -66,12 +66,21 @@ fn a_source_with_its_slots_held_is_retried_and_served_once_they_free() {
     assert!(log.contains("source served after all"), "{log}");
 }
 
-/// `n` sources with a publisher each, named `s<i>`.
-fn publishers(ns: &TestNamespace, n: usize) -> Vec<VelocityPublisher> {
+/// ghnetd allowed 200 sources under `prlimit --nofile=<nofile>` (soft:hard), then
+/// 150 sources with a publisher each, named `s<i>`.
+fn ghnetd_and_150_publishers(ns: &TestNamespace, nofile: &str) -> (Ghnetd, Vec<VelocityPublisher>) {
+    // ghnetd first: a child inherits the test process's iceoryx2 descriptors that
+    // lack O_CLOEXEC (about 8 per port here), which would eat its budget.
+    let daemon = Ghnetd::builder(ns)
+        .wrapper(&["prlimit", &format!("--nofile={nofile}"), "--"])
+        .arg("--max-sources")
+        .arg("200")
+        .start();
     let ipc = ns.ipc();
-    (0..n)
+    let gnss = (0..150)
         .map(|i| VelocityPublisher::new(&ipc, &format!("s{i}")).unwrap())
-        .collect()
+        .collect();
+    (daemon, gnss)
 }
 
 /// Row 2a: 150 sources under systemd's default soft descriptor limit (1024) with a
@@ -79,14 +88,7 @@ fn publishers(ns: &TestNamespace, n: usize) -> Vec<VelocityPublisher> {
 #[test]
 fn with_a_higher_hard_limit_ghnetd_raises_the_soft_one_and_serves_150_sources() {
     let ns = TestNamespace::new("prfd150");
-    // ghnetd first: a child inherits the test process's iceoryx2 descriptors that
-    // lack O_CLOEXEC (about 8 per port here), which would eat its budget.
-    let daemon = Ghnetd::builder(&ns)
-        .wrapper(&["prlimit", "--nofile=1024:8192", "--"])
-        .arg("--max-sources")
-        .arg("200")
-        .start();
-    let gnss = publishers(&ns, 150);
+    let (daemon, gnss) = ghnetd_and_150_publishers(&ns, "1024:8192");
     stats_when(&daemon, "150 sources served", |s| {
         s["sources"].as_object().map(|m| m.len()) == Some(150)
     });
@@ -109,14 +111,7 @@ fn with_a_higher_hard_limit_ghnetd_raises_the_soft_one_and_serves_150_sources() 
 #[test]
 fn at_a_hard_limit_of_1024_the_sources_over_it_are_reported_naming_descriptors() {
     let ns = TestNamespace::new("prfd1024");
-    // ghnetd first: a child inherits the test process's iceoryx2 descriptors that
-    // lack O_CLOEXEC (about 8 per port here), which would eat its budget.
-    let daemon = Ghnetd::builder(&ns)
-        .wrapper(&["prlimit", "--nofile=1024:1024", "--"])
-        .arg("--max-sources")
-        .arg("200")
-        .start();
-    let gnss = publishers(&ns, 150);
+    let (daemon, gnss) = ghnetd_and_150_publishers(&ns, "1024:1024");
     let stats = stats_when(&daemon, "every source served or unserved", |s| {
         let served = s["sources"].as_object().map_or(0, |m| m.len());
         let unserved = s["unserved"].as_object().map_or(0, |m| m.len());
@@ -438,22 +433,13 @@ fn infer_rows_with_a_wrong_field_count_are_invalid_and_aligned() {
 #[test]
 fn bad_source_names_are_logged_once_each_with_the_rule() {
     let ns = TestNamespace::new("prnames");
-    let ipc = ns.ipc();
-    let node = NodeBuilder::new()
-        .config(&ipc.iceoryx2_config())
-        .create::<ipc::Service>()
-        .unwrap();
+    let node = ns.foreign_node();
     let long = "x".repeat(65);
     let names = ["gnss.0", long.as_str(), "a b"];
     let _services: Vec<_> = names
         .iter()
         .map(|n| {
-            let name = ServiceName::new(&format!("ghnet/{n}/velocity")).unwrap();
-            let svc = node
-                .service_builder(&name)
-                .publish_subscribe::<VelocitySample>()
-                .open_or_create()
-                .unwrap();
+            let svc = foreign_service::<VelocitySample>(&node, &format!("ghnet/{n}/velocity"));
             let publisher = svc.publisher_builder().create().unwrap();
             (svc, publisher)
         })

@@ -13,7 +13,7 @@ use std::process::{Command, Stdio};
 use std::sync::mpsc;
 
 use ghnet_client::{encode_zenoh, HeadingEstimate, HeadingSubscriber, ZenohHeadingSubscriber};
-use ghnet_testkit::{zenoh_barrier, Ghnetd, Listen, TestNamespace, WATCHDOG};
+use ghnet_testkit::{assert_success, zenoh_barrier, Ghnetd, Listen, TestNamespace, WATCHDOG};
 
 fn python_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../examples/python")
@@ -97,11 +97,7 @@ fn python_publisher_gets_headings_and_python_subscriber_decodes_the_same_values(
         from_ice.insert(h.seq, h);
     }
     let out = publisher.wait_with_output().expect("reap");
-    assert!(
-        out.status.success(),
-        "publish_velocity.py: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out, "publish_velocity.py");
     assert_eq!(
         from_ice.keys().copied().collect::<Vec<_>>(),
         (1000..1000 + n).collect::<Vec<_>>()

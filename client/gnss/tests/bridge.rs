@@ -13,7 +13,7 @@ use std::sync::Arc;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use ghnet_client::testing::TestNamespace;
+use ghnet_client::testing::{assert_success, TestNamespace};
 use ghnet_client::{flags, HeadingEstimate, HeadingPublisher, VelocitySample, VelocitySubscriber};
 use ghnet_gnss::{Config, Input, Output, Summary};
 use ghnet_receivers::ubx::NavPvt;
@@ -116,11 +116,7 @@ fn print_gives_one_row_per_epoch_of_every_capture() {
             .arg(&path)
             .output()
             .expect("run ghnet-gnss");
-        assert!(
-            out.status.success(),
-            "{name}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        assert_success(&out, &name);
         let text = String::from_utf8(out.stdout).unwrap();
         let rows: Vec<&str> = text.lines().skip(1).collect();
         assert_eq!(rows.len(), want.len(), "{name}");

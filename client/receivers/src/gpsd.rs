@@ -209,16 +209,12 @@ fn velocity(r: &Report<'_>, time_ns: Option<u64>) -> Option<Epoch> {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
-
-    fn decode(text: &str) -> (Vec<Epoch>, Stats) {
-        let d = crate::decode(text.as_bytes(), Some(crate::Format::Gpsd));
-        (d.epochs, d.stats)
-    }
+    use crate::testing::skips;
+    use crate::Format::Gpsd;
 
     #[test]
     fn tpv_velocities_modes_and_duplicates() {
-        let (e, s) = decode(concat!(
+        let (e, s) = Gpsd.decode_text(concat!(
             "{\"class\":\"VERSION\",\"release\":\"3.25\",\"proto_major\":3,\"proto_minor\":15}\n",
             "{\"class\":\"TPV\",\"mode\":1}\n",
             "{\"class\":\"TPV\",\"mode\":3,\"time\":\"2022-10-18T10:00:01.000Z\",\"speed\":2.0,\"track\":90.0,\"climb\":0.5}\n",
@@ -238,16 +234,15 @@ mod tests {
             (1.0, -1.0, Some(0.1))
         );
         assert!(e[3].valid && e[3].v_north == 0.0 && e[3].course_deg.is_nan());
-        assert_eq!(s.skipped(Skip::Duplicate), 1);
-        assert_eq!(s.skipped(Skip::OutOfOrder), 1);
-        assert_eq!(s.skipped(Skip::NoVelocity), 1);
-        assert_eq!(s.skipped(Skip::Other), 2);
-        assert_eq!(s.skipped(Skip::Malformed), 1);
+        assert_eq!(
+            skips(&s),
+            "malformed=1 other=2 duplicate=1 out_of_order=1 no_velocity=1"
+        );
     }
 
     #[test]
     fn old_numeric_time() {
-        let (e, _) = decode(
+        let (e, _) = Gpsd.decode_text(
             "{\"class\":\"TPV\",\"mode\":2,\"time\":1500000000.25,\"speed\":0,\"track\":0}\r\n",
         );
         assert_eq!(e[0].time_ns, Some(1_500_000_000_250_000_000));

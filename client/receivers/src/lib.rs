@@ -48,6 +48,8 @@ pub mod gpsd;
 mod lines;
 pub mod nmea;
 pub mod stats;
+#[cfg(test)]
+mod testing;
 pub mod time;
 pub mod ubx;
 

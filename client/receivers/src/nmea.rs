@@ -446,15 +446,12 @@ fn gga_quality_ok(field: &[u8]) -> Option<bool> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn decode(text: &str) -> (Vec<Epoch>, Stats) {
-        let d = crate::decode(text.as_bytes(), Some(crate::Format::Nmea));
-        (d.epochs, d.stats)
-    }
+    use crate::testing::skips;
+    use crate::Format::Nmea;
 
     #[test]
     fn rmc_moving_standstill_and_void() {
-        let (e, s) = decode(concat!(
+        let (e, s) = Nmea.decode_text(concat!(
             "$GPRMC,143307.00,A,5546.82649,N,02334.71625,E,30.860,221.48,091209,,,A*5D\r\n",
             "$GPRMC,152505.00,A,5547.82113,N,02334.14130,E,0.253,,091209,,,A*7A\r\n",
             "$GPRMC,,V,,,,,,,,,,N*53\r\n",
@@ -474,7 +471,7 @@ mod tests {
 
     #[test]
     fn mode_indicator_and_gga_quality_invalidate() {
-        let (e, _) = decode(concat!(
+        let (e, _) = Nmea.decode_text(concat!(
             "$GPRMC,000346.03,A,4808.1,N,01131.0,E,5.0,90.0,010120,,,E*61\r\n",
             "$GPGGA,000347,4808.1,N,01131.0,E,0,00,,,M,,M,,*5A\r\n",
             "$GPRMC,000347,A,4808.1,N,01131.0,E,5.0,90.0,010120,,*24\r\n",
@@ -486,7 +483,7 @@ mod tests {
 
     #[test]
     fn vtg_without_rmc_takes_the_next_time_and_zda_date() {
-        let (e, s) = decode(concat!(
+        let (e, s) = Nmea.decode_text(concat!(
             "$GNZDA,231409.00,11,04,2025,00,00*74\r\n",
             "$GNVTG,90.0,T,,M,1.944,N,3.600,K,A*27\r\n",
             "$GNGGA,231410.00,4503.94,N,07500.00,W,1,12,0.9,100.0,M,0.0,M,,*53\r\n",
@@ -499,7 +496,7 @@ mod tests {
 
     #[test]
     fn vtg_beside_rmc_is_redundant_in_either_order() {
-        let (e, _) = decode(concat!(
+        let (e, _) = Nmea.decode_text(concat!(
             "$GPVTG,300.5,T,296.9,M,1.3,N,2.3,K,A*22\r\n",
             "$GPRMC,191503.01,A,3645.876324,N,03124.670280,E,1.3,300.5,110922,3.6,E,A,V*4E\r\n",
             "$GPVTG,300.5,T,296.9,M,1.0,N,1.9,K,A*28\r\n",
@@ -511,7 +508,7 @@ mod tests {
 
     #[test]
     fn rejects_bad_checksums_and_counts_other_sentences() {
-        let (e, s) = decode(concat!(
+        let (e, s) = Nmea.decode_text(concat!(
             "# a comment\r\n",
             "$GPRMC,143307.00,A,5546.82649,N,02334.71625,E,30.860,221.48,091209,,,A*5E\r\n",
             "$GPGSV,1,1,00*79\r\n",
@@ -520,16 +517,16 @@ mod tests {
             "$GPRMC,1433",
         ));
         assert!(e.is_empty());
-        assert_eq!(s.skipped(Skip::BadChecksum), 1);
-        assert_eq!(s.skipped(Skip::Other), 3);
-        assert_eq!(s.skipped(Skip::Comment), 1);
-        assert_eq!(s.skipped(Skip::Garbage), 2);
-        assert_eq!(s.skipped(Skip::Truncated), 1);
+        assert_eq!(
+            skips(&s),
+            "garbage_bytes=2 comment=1 bad_checksum=1 truncated=1 other=3"
+        );
     }
 
     #[test]
     fn unchecked_sentences_are_accepted() {
-        let (e, _) = decode("$GPRMC,222449,A,3349.0337,S,01843.9282,E,0.0,0.0,010120,,\r\n");
+        let (e, _) =
+            Nmea.decode_text("$GPRMC,222449,A,3349.0337,S,01843.9282,E,0.0,0.0,010120,,\r\n");
         assert_eq!(e.len(), 1);
         assert!(e[0].valid);
     }

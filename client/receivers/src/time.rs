@@ -83,6 +83,18 @@ pub fn fraction_ns(s: &[u8]) -> Option<i64> {
     Some(ns)
 }
 
+/// [`ns_of_day`] of a time written in digits: hour, minute and second fields and the
+/// digits after the decimal point (empty for none). NMEA and gpsd differ only in where
+/// the fields stand.
+fn written_ns_of_day(hour: &[u8], min: &[u8], sec: &[u8], frac: &[u8]) -> Option<i64> {
+    ns_of_day(
+        digits(hour)?,
+        digits(min)?,
+        digits(sec)?,
+        fraction_ns(frac)?,
+    )
+}
+
 /// NMEA time of day `hhmmss` or `hhmmss.sss` → ns since midnight.
 pub fn parse_hhmmss(field: &[u8]) -> Option<u64> {
     let (whole, frac) = match field.iter().position(|&b| b == b'.') {
@@ -92,12 +104,7 @@ pub fn parse_hhmmss(field: &[u8]) -> Option<u64> {
     if whole.len() != 6 {
         return None;
     }
-    let ns = ns_of_day(
-        digits(&whole[0..2])?,
-        digits(&whole[2..4])?,
-        digits(&whole[4..6])?,
-        fraction_ns(frac)?,
-    )?;
+    let ns = written_ns_of_day(&whole[0..2], &whole[2..4], &whole[4..6], frac)?;
     u64::try_from(ns).ok()
 }
 
@@ -131,12 +138,7 @@ pub fn parse_iso8601(s: &str) -> Option<u64> {
         digits(&b[5..7])?,
         digits(&b[8..10])?,
     )?;
-    let ns = ns_of_day(
-        digits(&b[11..13])?,
-        digits(&b[14..16])?,
-        digits(&b[17..19])?,
-        fraction_ns(frac)?,
-    )?;
+    let ns = written_ns_of_day(&b[11..13], &b[14..16], &b[17..19], frac)?;
     unix_ns(days, ns)
 }
 

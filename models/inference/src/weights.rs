@@ -372,6 +372,18 @@ pub const MAX_LAYERS: usize = 64;
 /// many feature vectors).
 pub const MAX_WINDOW: usize = 64;
 
+/// The filter parameters of a `kind` (noise densities, the gap limit) divide and take
+/// roots, so each must be a positive finite number; `model` names the kind in the error.
+fn check_positive(model: &str, params: &[f32]) -> Result<(), WeightsError> {
+    if params.iter().all(|&v| v.is_finite() && v > 0.0) {
+        return Ok(());
+    }
+    Err(WeightsError::BadMetadata {
+        key: "kind".into(),
+        reason: format!("{model} parameters must be positive numbers"),
+    })
+}
+
 /// Checks what the inference code assumes of an architecture from a file: two inputs
 /// (v_N, v_E), at least one convolution, sizes in `1..=MAX_LAYER_WIDTH`, at most
 /// [`MAX_LAYERS`] layers. Without this a bad file would panic or abort at load or at
@@ -389,13 +401,7 @@ fn check_arch(a: &Arch, kind: &ModelKind, head: &Head) -> Result<(), WeightsErro
             sigma_v_mps,
             max_gap_s,
         } => {
-            let ok = |v: f32| v.is_finite() && v > 0.0;
-            if !(ok(q_deg_per_sqrt_s) && ok(sigma_v_mps) && ok(max_gap_s)) {
-                return Err(WeightsError::BadMetadata {
-                    key: "kind".into(),
-                    reason: "kf parameters must be positive numbers".into(),
-                });
-            }
+            check_positive("kf", &[q_deg_per_sqrt_s, sigma_v_mps, max_gap_s])?;
             if !(a.conv.is_empty() && a.fc.is_empty() && a.output == 0) {
                 return bad("a kf model has no network (no conv, fc or output)".into());
             }
@@ -407,13 +413,7 @@ fn check_arch(a: &Arch, kind: &ModelKind, head: &Head) -> Result<(), WeightsErro
             sigma_v_mps,
             ..
         } => {
-            let ok = |v: f32| v.is_finite() && v > 0.0;
-            if !(ok(max_gap_s) && ok(q_deg_per_sqrt_s) && ok(sigma_v_mps)) {
-                return Err(WeightsError::BadMetadata {
-                    key: "kind".into(),
-                    reason: "temporal parameters must be positive numbers".into(),
-                });
-            }
+            check_positive("temporal", &[max_gap_s, q_deg_per_sqrt_s, sigma_v_mps])?;
             if a.input != crate::stream::INPUTS || !(2..=MAX_WINDOW).contains(&a.window) {
                 return bad(format!(
                     "a temporal model needs input {} and window 2..={MAX_WINDOW} (got {}, {})",

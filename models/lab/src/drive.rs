@@ -28,7 +28,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
-use crate::sim::Split;
+use crate::sim::{log_uniform, uniform, Split};
 
 /// Internal simulation step, s: kinematics and receiver filters run at 10 Hz and each
 /// receiver takes every `10/rate`-th state.
@@ -168,14 +168,6 @@ impl Default for DriveParams {
             val_fraction: 0.15,
             test_fraction: 0.15,
         }
-    }
-}
-
-fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
-    if hi > lo {
-        rng.random_range(lo..hi)
-    } else {
-        lo
     }
 }
 
@@ -398,7 +390,7 @@ impl Receiver {
         Self {
             kind,
             rate_hz: *p.rates_hz.choose(rng).unwrap_or(&1),
-            sigma: uniform(rng, p.sigma_min.ln(), p.sigma_max.ln()).exp(),
+            sigma: log_uniform(rng, p.sigma_min, p.sigma_max),
             // Only some receivers smooth; RTKLIB's epoch-by-epoch Doppler does not.
             lag_s: match kind {
                 ReceiverKind::Rtklib => 0.0,

@@ -230,29 +230,41 @@ pub fn initial_bias(head: &Head) -> Vec<f32> {
 mod tests {
     use super::*;
 
-    /// The σ term uses the error as a constant (stop-gradient), which finite differences
-    /// cannot see: heading outputs are checked with the σ term off, the σ output with it on.
-    fn check_loss_grad(head: Head, y: &[f32], vn: f32, ve: f32, truth: f32) {
+    /// Holds the analytic gradient that `loss(y, sigma_weight, dy)` writes against
+    /// central finite differences of the loss it returns, output by output; `case`
+    /// names the failing case. The σ term uses the error as a constant
+    /// (stop-gradient), which finite differences cannot see: heading outputs are
+    /// checked with the σ term off, the σ output (the last) with it on.
+    fn check_grad(
+        case: &dyn std::fmt::Debug,
+        y: &[f32],
+        loss: impl Fn(&[f32], f32, &mut [f32]) -> (f32, f32, f32),
+    ) {
         let k_sigma = y.len() - 1;
         for k in 0..y.len() {
             let w = if k == k_sigma { 0.3 } else { 0.0 };
             let mut dy = vec![0.0; y.len()];
-            head_loss(&head, y, vn, ve, truth, w, &mut dy);
+            loss(y, w, &mut dy);
             let h = 1e-3;
-            let mut yp = y.to_vec();
-            let mut ym = y.to_vec();
+            let (mut yp, mut ym) = (y.to_vec(), y.to_vec());
             yp[k] += h;
             ym[k] -= h;
             let mut tmp = vec![0.0; y.len()];
-            let lp = head_loss(&head, &yp, vn, ve, truth, w, &mut tmp).0 as f64;
-            let lm = head_loss(&head, &ym, vn, ve, truth, w, &mut tmp).0 as f64;
+            let lp = loss(&yp, w, &mut tmp).0 as f64;
+            let lm = loss(&ym, w, &mut tmp).0 as f64;
             let fd = (lp - lm) / (2.0 * h as f64);
             assert!(
                 (fd - dy[k] as f64).abs() < 2e-3 * (1.0 + fd.abs()),
-                "{head:?} output {k}: analytic {} fd {fd}",
+                "{case:?} output {k}: analytic {} fd {fd}",
                 dy[k]
             );
         }
+    }
+
+    fn check_loss_grad(head: Head, y: &[f32], vn: f32, ve: f32, truth: f32) {
+        check_grad(&head, y, |y, w, dy| {
+            head_loss(&head, y, vn, ve, truth, w, dy)
+        });
     }
 
     #[test]
@@ -292,24 +304,9 @@ mod tests {
         ];
         let base = KalmanBase { p: 0.04, r2: 0.05 };
         for (y, course, prior, truth, rev) in cases {
-            for k in 0..3 {
-                let w = if k == 2 { 0.3 } else { 0.0 };
-                let mut dy = [0.0; 3];
-                filter_loss(&y, course, prior, &base, truth, rev, w, &mut dy);
-                let h = 1e-3;
-                let (mut yp, mut ym) = (y, y);
-                yp[k] += h;
-                ym[k] -= h;
-                let mut t = [0.0; 3];
-                let lp = filter_loss(&yp, course, prior, &base, truth, rev, w, &mut t).0 as f64;
-                let lm = filter_loss(&ym, course, prior, &base, truth, rev, w, &mut t).0 as f64;
-                let fd = (lp - lm) / (2.0 * h as f64);
-                assert!(
-                    (fd - dy[k] as f64).abs() < 2e-3 * (1.0 + fd.abs()),
-                    "{y:?} output {k}: analytic {} fd {fd}",
-                    dy[k]
-                );
-            }
+            check_grad(&y, &y, |y, w, dy| {
+                filter_loss(y, course, prior, &base, truth, rev, w, dy)
+            });
         }
     }
 
@@ -366,24 +363,7 @@ mod tests {
             ),
         ];
         for (y, st, truth, rev) in cases {
-            for k in 0..3 {
-                let w = if k == 2 { 0.3 } else { 0.0 };
-                let mut dy = [0.0; 3];
-                mode_loss(&y, &st, truth, rev, w, &mut dy);
-                let h = 1e-3;
-                let (mut yp, mut ym) = (y, y);
-                yp[k] += h;
-                ym[k] -= h;
-                let mut t = [0.0; 3];
-                let lp = mode_loss(&yp, &st, truth, rev, w, &mut t).0 as f64;
-                let lm = mode_loss(&ym, &st, truth, rev, w, &mut t).0 as f64;
-                let fd = (lp - lm) / (2.0 * h as f64);
-                assert!(
-                    (fd - dy[k] as f64).abs() < 2e-3 * (1.0 + fd.abs()),
-                    "{y:?} output {k}: analytic {} fd {fd}",
-                    dy[k]
-                );
-            }
+            check_grad(&y, &y, |y, w, dy| mode_loss(y, &st, truth, rev, w, dy));
         }
     }
 }

@@ -449,7 +449,8 @@ impl Default for RealisticParams {
 }
 
 /// Uniform draw in [lo, hi] that tolerates lo == hi (rand's ranges panic when empty).
-fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+/// Shared with [`crate::drive`], so both simulators treat a collapsed range alike.
+pub(crate) fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
     if hi > lo {
         rng.random_range(lo..=hi)
     } else {
@@ -457,8 +458,9 @@ fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
     }
 }
 
-/// Log-uniform draw in [lo, hi] (both > 0).
-fn log_uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+/// Log-uniform draw in [lo, hi] (both > 0), for scales such as noise σ where a
+/// factor matters, not a difference.
+pub(crate) fn log_uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
     uniform(rng, lo.ln(), hi.ln()).exp()
 }
 

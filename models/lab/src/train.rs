@@ -161,6 +161,18 @@ pub fn dense_backward(
     }
 }
 
+/// Per channel (row of `shape`), the sum over the batch (columns) of `term(c, j)`,
+/// into `out`: the reductions of batch norm's forward and backward passes. Sums in
+/// column order, as the layers' other loops walk faer's column-major storage.
+fn sum_over_batch(shape: MatRef<'_, f32>, out: &mut [f32], term: impl Fn(usize, usize) -> f32) {
+    out.fill(0.0);
+    for j in 0..shape.ncols() {
+        for (c, o) in out.iter_mut().enumerate().take(shape.nrows()) {
+            *o += term(c, j);
+        }
+    }
+}
+
 /// Batch norm in training mode: normalises each channel (row) over the batch, writes
 /// `x̂` and `y = γ·x̂ + β`, returns per-channel mean and biased variance.
 #[allow(clippy::too_many_arguments)] // the layer's inputs and outputs, as in the math
@@ -175,22 +187,14 @@ pub fn bn_forward_train(
     inv_std: &mut [f32],
 ) {
     let n = z.ncols() as f32;
-    mean.fill(0.0);
-    var.fill(0.0);
-    for j in 0..z.ncols() {
-        for c in 0..z.nrows() {
-            mean[c] += z[(c, j)];
-        }
-    }
+    sum_over_batch(z.as_ref(), mean, |c, j| z[(c, j)]);
     for m in mean.iter_mut() {
         *m /= n;
     }
-    for j in 0..z.ncols() {
-        for c in 0..z.nrows() {
-            let d = z[(c, j)] - mean[c];
-            var[c] += d * d;
-        }
-    }
+    sum_over_batch(z.as_ref(), var, |c, j| {
+        let d = z[(c, j)] - mean[c];
+        d * d
+    });
     for c in 0..z.nrows() {
         var[c] /= n;
         inv_std[c] = 1.0 / (var[c] + BN_EPS).sqrt();
@@ -215,14 +219,8 @@ pub fn bn_backward_train(
     dbeta: &mut [f32],
 ) {
     let n = dy.ncols() as f32;
-    dgamma.fill(0.0);
-    dbeta.fill(0.0);
-    for j in 0..dy.ncols() {
-        for c in 0..dy.nrows() {
-            dgamma[c] += dy[(c, j)] * xhat[(c, j)];
-            dbeta[c] += dy[(c, j)];
-        }
-    }
+    sum_over_batch(dy, dgamma, |c, j| dy[(c, j)] * xhat[(c, j)]);
+    sum_over_batch(dy, dbeta, |c, j| dy[(c, j)]);
     // dxhat = dy·γ; Σdxhat = γ·dβ; Σ(dxhat·x̂) = γ·dγ.
     for j in 0..dy.ncols() {
         for c in 0..dy.nrows() {
@@ -989,6 +987,21 @@ mod tests {
 
     const H: f32 = 1e-2;
 
+    /// The central difference `(loss(x + h) − loss(x − h)) / 2h` in one entry of `x`,
+    /// which `nudge(x, d)` moves by `d`: what every analytic gradient here is held
+    /// against.
+    fn central_difference<T: Clone>(
+        x: &T,
+        h: f32,
+        nudge: impl Fn(&mut T, f32),
+        loss: impl Fn(&T) -> f64,
+    ) -> f64 {
+        let (mut p, mut m) = (x.clone(), x.clone());
+        nudge(&mut p, h);
+        nudge(&mut m, -h);
+        (loss(&p) - loss(&m)) / (2.0 * h as f64)
+    }
+
     #[test]
     fn dense_backward_matches_finite_differences() {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
@@ -1015,26 +1028,17 @@ mod tests {
         );
         for i in 0..cin {
             for o in 0..cout {
-                let (mut p, mut m) = (wt.clone(), wt.clone());
-                p[(i, o)] += H;
-                m[(i, o)] -= H;
-                let fd = (loss(&p, &b, &x) - loss(&m, &b, &x)) / (2.0 * H as f64);
+                let fd = central_difference(&wt, H, |v, d| v[(i, o)] += d, |v| loss(v, &b, &x));
                 assert_close(gwt[(i, o)], fd, "dense dW");
             }
         }
         for o in 0..cout {
-            let (mut p, mut m) = (b.clone(), b.clone());
-            p[o] += H;
-            m[o] -= H;
-            let fd = (loss(&wt, &p, &x) - loss(&wt, &m, &x)) / (2.0 * H as f64);
+            let fd = central_difference(&b, H, |v, d| v[o] += d, |v| loss(&wt, v, &x));
             assert_close(gb[o], fd, "dense db");
         }
         for i in 0..cin {
             for j in 0..n {
-                let (mut p, mut m) = (x.clone(), x.clone());
-                p[(i, j)] += H;
-                m[(i, j)] -= H;
-                let fd = (loss(&wt, &b, &p) - loss(&wt, &b, &m)) / (2.0 * H as f64);
+                let fd = central_difference(&x, H, |v, d| v[(i, j)] += d, |v| loss(&wt, &b, v));
                 assert_close(dx[(i, j)], fd, "dense dx");
             }
         }
@@ -1079,21 +1083,13 @@ mod tests {
         let h = 1e-3f32;
         for i in 0..c {
             for j in 0..n {
-                let (mut p, mut m) = (z.clone(), z.clone());
-                p[(i, j)] += h;
-                m[(i, j)] -= h;
-                let fd = (fwd(&p, &gamma, &beta).0 - fwd(&m, &gamma, &beta).0) / (2.0 * h as f64);
+                let fd =
+                    central_difference(&z, h, |v, d| v[(i, j)] += d, |v| fwd(v, &gamma, &beta).0);
                 assert_close(dz[(i, j)], fd, "bn dz");
             }
-            let (mut p, mut m) = (gamma.clone(), gamma.clone());
-            p[i] += h;
-            m[i] -= h;
-            let fd = (fwd(&z, &p, &beta).0 - fwd(&z, &m, &beta).0) / (2.0 * h as f64);
+            let fd = central_difference(&gamma, h, |v, d| v[i] += d, |v| fwd(&z, v, &beta).0);
             assert_close(dg[i], fd, "bn dgamma");
-            let (mut p, mut m) = (beta.clone(), beta.clone());
-            p[i] += h;
-            m[i] -= h;
-            let fd = (fwd(&z, &gamma, &p).0 - fwd(&z, &gamma, &m).0) / (2.0 * h as f64);
+            let fd = central_difference(&beta, h, |v, d| v[i] += d, |v| fwd(&z, &gamma, v).0);
             assert_close(db[i], fd, "bn dbeta");
         }
     }
@@ -1126,10 +1122,7 @@ mod tests {
             for j in 0..n {
                 let analytic = r[(i, j)] * mask[(i, j)] * g[(i, j)];
                 let h = 1e-3f32;
-                let (mut p, mut m) = (a.clone(), a.clone());
-                p[(i, j)] += h;
-                m[(i, j)] -= h;
-                let fd = (f(&p).0 - f(&m).0) / (2.0 * h as f64);
+                let fd = central_difference(&a, h, |v, d| v[(i, j)] += d, |v| f(v).0);
                 assert_close(analytic, fd, "gelu+dropout");
             }
         }

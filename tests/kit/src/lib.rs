@@ -27,6 +27,8 @@
 //! - [`recv_answer`] — the next heading that answers a sample (skipping `Stale`);
 //!   [`assert_silent`] — no extra heading; [`zenoh_barrier`] — returns once a daemon
 //!   knows a session's subscribers.
+//! - [`assert_success`] (re-exported) — a child command succeeded, or its stderr in
+//!   the failure.
 //! - [`list_nodes`] — a namespace's iceoryx2 nodes, alive and dead.
 //! - [`test_model`] — the model the daemons run, loaded in-process for comparisons.
 //!
@@ -56,7 +58,7 @@ use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 pub use child::{ChildPublisher, ChildRouter, ChildSubscriber, Heading};
-pub use ghnet_client::testing::TestNamespace;
+pub use ghnet_client::testing::{assert_success, foreign_service, TestNamespace};
 use ghnet_client::zenoh::{self, Wait};
 use ghnet_client::{
     HeadingEstimate, HeadingStatus, HeadingSubscriber, IpcConfig, VelocityPublisher, VelocitySample,

@@ -18,7 +18,9 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use ghnet_client::iceoryx2::prelude::*;
 use ghnet_client::zenoh::{Session, Wait};
-use ghnet_client::{decode_zenoh, HeadingStatus, HeadingSubscriber, VelocityPublisher};
+use ghnet_client::{
+    decode_zenoh, wait_for_listeners, HeadingStatus, HeadingSubscriber, VelocityPublisher,
+};
 
 use crate::latency::moving_sample;
 use crate::target::{cpu_time, Env, Kind, Rss, Spec, Target};
@@ -316,14 +318,7 @@ impl Rig<'_> {
             // Zenoh answers come on Zenoh's threads and wake nobody here: the short
             // timeout tops up a source held back by its Zenoh answers soon after they
             // arrive, even when no iceoryx2 answer does.
-            let on_event = |id: WaitSetAttachmentId<ipc::Service>| {
-                if let Some(i) = guards.iter().position(|g| id.has_event_from(g)) {
-                    fired.push(i);
-                }
-                CallbackProgression::Continue
-            };
-            waitset
-                .wait_and_process_once_with_timeout(on_event, Duration::from_millis(1))
+            wait_for_listeners(&waitset, &guards, Duration::from_millis(1), &mut fired)
                 .map_err(|e| anyhow::anyhow!("WaitSet: {e:?}"))?;
             for i in fired.drain(..) {
                 self.drain(i)?;
