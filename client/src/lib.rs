@@ -26,7 +26,7 @@
 //!   (presence, stats, model) and `peer_config`, the loopback-only Zenoh config.
 //! - [`signals`] — [`termination_requested`]: Ctrl-C handling for programs using the
 //!   helpers (iceoryx2 captures SIGINT/SIGTERM once it is in use).
-//! - [`waitset`] — [`wait_for_listeners`]: which of many receivers woke a `WaitSet`,
+//! - [`waitset`] — [`attach_listeners`] and [`wait_for_listeners`]: which of many receivers woke a `WaitSet`,
 //!   by position, for a thread that serves them all.
 //! - `testing` (feature `testing`) — `testing::TestNamespace`, a private iceoryx2
 //!   namespace per test that cleans up after itself; helpers tests of several crates
@@ -90,7 +90,7 @@ pub use names::{
 pub use remote::{peer_config, ZenohHeadingSubscriber, ZenohOpenError, DEFAULT_ZENOH_PORT};
 pub use settings::{Message, ServiceSettings, SERVICE_SETTINGS};
 pub use signals::termination_requested;
-pub use waitset::wait_for_listeners;
+pub use waitset::{attach_listeners, wait_for_listeners};
 pub use wire::{flags, CodecError, HeadingEstimate, HeadingStatus, VelocitySample, MODEL_NAME_LEN};
 
 /// The iceoryx2 crate this wire is built on, re-exported so users (and the daemon)

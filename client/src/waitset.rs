@@ -3,7 +3,9 @@
 use std::time::Duration;
 
 use iceoryx2::prelude::*;
-use iceoryx2::waitset::{WaitSetRunError, WaitSetRunResult};
+use iceoryx2::waitset::{WaitSetAttachmentError, WaitSetRunError, WaitSetRunResult};
+
+use crate::{Message, Receiver};
 
 /// Waits on `waitset` for at most `timeout` and appends to `fired` the position in
 /// `guards` of every listener that woke it, so a loop over many sources gets indexes
@@ -26,4 +28,19 @@ pub fn wait_for_listeners(
         CallbackProgression::Continue
     };
     waitset.wait_and_process_once_with_timeout(on_event, timeout)
+}
+
+/// Attaches the listener of every receiver in `receivers` to `waitset`, in order, so
+/// that a guard's position is its receiver's position: the index
+/// [`wait_for_listeners`] reports. The guards detach on drop; keep them for as long as
+/// the loop waits. Fails on the first listener the `WaitSet` cannot take (its capacity
+/// is the limit).
+pub fn attach_listeners<'w, 'a, T: Message + 'a>(
+    waitset: &'w WaitSet<ipc::Service>,
+    receivers: impl IntoIterator<Item = &'a Receiver<T>>,
+) -> Result<Vec<WaitSetGuard<'w, 'a, ipc::Service>>, WaitSetAttachmentError> {
+    receivers
+        .into_iter()
+        .map(|r| waitset.attach_notification(r.listener()))
+        .collect()
 }

@@ -263,10 +263,7 @@ impl Daemon {
         let tick = waitset
             .attach_interval(self.config.discovery_interval())
             .context("cannot attach the housekeeping interval")?;
-        let guards = sources
-            .iter()
-            .map(|s| waitset.attach_notification(s.velocity.listener()))
-            .collect::<Result<Vec<_>, _>>()
+        let guards = ghnet_client::attach_listeners(waitset, sources.iter().map(|s| &s.velocity))
             .context("cannot attach a source listener to the WaitSet")?;
         self.wake.size_for(sources.len());
         // Samples that arrived before a listener was attached (or before it existed)

@@ -95,10 +95,7 @@ pub fn run(args: EchoArgs) -> anyhow::Result<()> {
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
         .context("WaitSet")?;
-    let guards = ports
-        .iter()
-        .map(|p| waitset.attach_notification(p.velocity.listener()))
-        .collect::<Result<Vec<_>, _>>()
+    let guards = ghnet_client::attach_listeners(&waitset, ports.iter().map(|p| &p.velocity))
         .context("attach")?;
     for p in &ports {
         serve(p);
