@@ -151,7 +151,9 @@ pub fn inputs(
     let speed = step.speed;
     let (s, c) = (step.course - step.prior).sin_cos();
     let cap = log_sigma_cap();
-    let log = |v: f32| 0.5 * v.max(1e-12).ln();
+    // Clamped both ways: a receiver may claim any finite accuracy (f32::MAX seeds the
+    // noise estimate), and an infinite input would make every output NaN.
+    let log = |v: f32| 0.5 * v.clamp(1e-12, 1e12).ln();
     let flag = |b: bool| if b { 1.0 } else { 0.0 };
     let accel = if prev.prev_v[0].is_finite() && dt > 0.0 {
         (v_north - prev.prev_v[0]).hypot(v_east - prev.prev_v[1]) / dt
