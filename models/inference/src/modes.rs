@@ -445,8 +445,6 @@ pub struct Decision {
     pub psi: f32,
     /// The filter's `log σ` after the step (σ in radians).
     pub log_sigma: f32,
-    /// Probability of reversing (the logistic of the reverse logit).
-    pub p_reverse: f32,
     /// Gain used (1 after a jump).
     pub gain: f32,
 }
@@ -456,7 +454,6 @@ pub struct Decision {
 pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
     let cap = MAX_STD_DEG.to_radians();
     let logit = reverse_logit(step.rule_reverse, y[1]);
-    let p_reverse = 1.0 / (1.0 + (-logit).exp());
     let (psi, var, gain) = if step.hold {
         (step.prior, cap * cap, 0.0)
     } else {
@@ -490,7 +487,6 @@ pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
     Decision {
         psi,
         log_sigma: st.log_sigma,
-        p_reverse,
         gain,
     }
 }
