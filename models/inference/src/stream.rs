@@ -833,14 +833,9 @@ mod tests {
         let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
         let mut sp = StreamPredictor::new(model);
         let mut h = sp.history();
-        let mut seed = 7u32;
-        let mut noise = move || {
-            // xorshift, uniform in ±0.0866 m/s: σ = 0.05 m/s per axis.
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            (seed as f32 / u32::MAX as f32 - 0.5) * 0.1732
-        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        // Uniform in ±0.0866 m/s: σ = 0.05 m/s per axis.
+        let mut noise = move || rng.random_range(-0.0866f32..0.0866);
         let mut ep = |i: usize, speed: f32| Epoch {
             t_s: i as f64 * 0.1,
             v_north: speed * 45f32.to_radians().cos() + noise(),
