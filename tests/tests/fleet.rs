@@ -19,8 +19,8 @@ use std::time::{Duration, Instant};
 use ghnet_client::zenoh::{self, pubsub::Subscriber, Wait};
 use ghnet_client::{decode_zenoh, peer_config, HeadingStatus, VelocityPublisher, VelocitySample};
 use ghnet_testkit::{
-    free_tcp_port, now_ns, wait_until, zenoh_barrier, ChildPublisher, ChildRouter, Ghnetd,
-    NetNamespace, TestNamespace, WATCHDOG,
+    free_tcp_port, now_ns, router_config, wait_until, zenoh_barrier, ChildPublisher, ChildRouter,
+    Ghnetd, NetNamespace, TestNamespace, WATCHDOG,
 };
 
 const VEHICLES: [&str; 2] = ["fleet/truck1", "fleet/truck2"];
@@ -29,9 +29,9 @@ const SOURCE: &str = "gnss0";
 /// A Zenoh router on `endpoint` (the zenoh crate in router mode, as `zenohd` runs it),
 /// loopback only, no scouting.
 fn router(endpoint: &str) -> zenoh::Session {
-    let mut c = peer_config(&[endpoint.to_owned()], &[]).unwrap();
-    c.insert_json5("mode", "\"router\"").unwrap();
-    zenoh::open(c).wait().expect("router session")
+    zenoh::open(router_config(&[endpoint.to_owned()]))
+        .wait()
+        .expect("router session")
 }
 
 /// A consumer that knows only the router: a Zenoh *client* (a peer attached only to a

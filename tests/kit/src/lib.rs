@@ -167,6 +167,15 @@ pub fn model_answers(session: &zenoh::Session, ipc: &IpcConfig) -> bool {
     matches!(replies.recv(), Ok(r) if r.result().is_ok())
 }
 
+/// The Zenoh config of a router listening on `endpoints`: ghnet's peer config (scouting
+/// off) in router mode, as `zenohd` runs it. One definition for the fleet tests' router,
+/// whether it runs in the test or as the `ghnet-test-router` process.
+pub fn router_config(endpoints: &[String]) -> zenoh::Config {
+    let mut c = ghnet_client::peer_config(endpoints, &[]).expect("zenoh config");
+    c.insert_json5("mode", "\"router\"").expect("router mode");
+    c
+}
+
 /// A free TCP port on loopback, for a Zenoh endpoint a test chooses (the kernel picks
 /// it; it is free again a moment later for whoever binds it next).
 pub fn free_tcp_port() -> u16 {

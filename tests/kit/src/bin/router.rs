@@ -9,8 +9,8 @@
 
 use std::io::Write;
 
-use ghnet_client::peer_config;
 use ghnet_client::zenoh::{self, Wait};
+use ghnet_testkit::router_config;
 
 fn main() {
     let endpoints: Vec<String> = std::env::args().skip(1).collect();
@@ -18,12 +18,10 @@ fn main() {
         eprintln!("usage: ghnet-test-router ENDPOINT...");
         std::process::exit(2);
     }
-    let mut config = peer_config(&endpoints, &[]).expect("zenoh config");
-    config
-        .insert_json5("mode", "\"router\"")
-        .expect("router mode");
     // `open` returns once every listener is bound: connecting clients find it.
-    let _router = zenoh::open(config).wait().expect("router session");
+    let _router = zenoh::open(router_config(&endpoints))
+        .wait()
+        .expect("router session");
     let mut out = std::io::stdout().lock();
     writeln!(out, "ready")
         .and_then(|_| out.flush())
