@@ -319,6 +319,11 @@ fn train(cmd: Cmd) -> Result<()> {
         let output = output.context("--output is required with --data")?;
         return commands::train_data(&data, &output, init.as_deref(), heading_range, seed, epochs);
     }
+    // clap's `requires = "data"` does not fire for an empty `Vec`: check here, or a
+    // recipe run would silently ignore them.
+    if init.is_some() || heading_range.is_some() {
+        bail!("--init and --heading-range need --data (a recipe trains from scratch)");
+    }
     let recipe = recipe.context("--recipe or --data")?;
     let output =
         output.unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());

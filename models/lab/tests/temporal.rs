@@ -113,3 +113,32 @@ fn train_eval_and_infer_on_a_small_log() {
         .ends_with("heading_deg,heading_std_deg,status"));
     assert!(answered.contains(",held\n"), "a stopped car is held");
 }
+
+/// `--init` with a recipe is refused, not silently ignored (clap's `requires` does not
+/// fire for an empty `--data` list).
+#[test]
+fn init_without_data_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    // Should the check regress, this trains nothing and writes nowhere that matters.
+    let output = dir.path().join("never.safetensors");
+    let out = Command::new(env!("CARGO_BIN_EXE_ghnet"))
+        .args([
+            "train",
+            "--recipe",
+            "ghnet-temporal",
+            "--init",
+            "kf",
+            "--epochs",
+            "0",
+        ])
+        .arg("--output")
+        .arg(&output)
+        .output()
+        .expect("runs ghnet");
+    assert!(!out.status.success(), "a recipe run with --init must fail");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--init and --heading-range need --data"),
+        "{err}"
+    );
+}
