@@ -123,7 +123,7 @@ pub fn kalman_base(
     let cap = MAX_STD_DEG.to_radians();
     let r = accuracy_sigma_base(v_north, v_east, sv).unwrap_or(cap);
     let p = if state.has_prior {
-        ((2.0 * state.log_sigma).exp() + q * q * dt).min(cap * cap)
+        crate::modes::random_walk_variance(state.log_sigma, q, dt)
     } else {
         cap * cap
     };
