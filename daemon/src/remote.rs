@@ -49,6 +49,8 @@ pub(crate) struct LatencyRing {
     ns: Box<[u64; LATENCY_WINDOW]>,
     len: usize,
     next: usize,
+    /// Times pushed since the ring was made, so a copy can take only what is new.
+    pushed: u64,
 }
 
 impl LatencyRing {
@@ -57,6 +59,7 @@ impl LatencyRing {
             ns: Box::new([0; LATENCY_WINDOW]),
             len: 0,
             next: 0,
+            pushed: 0,
         }
     }
 
@@ -64,6 +67,24 @@ impl LatencyRing {
         self.ns[self.next] = ns;
         self.next = (self.next + 1) % LATENCY_WINDOW;
         self.len = (self.len + 1).min(LATENCY_WINDOW);
+        self.pushed += 1;
+    }
+
+    /// Brings `copy` (a copy of this ring made when it had `seen` pushes) up to date
+    /// and returns the count to pass next time. Copies only the slots written since:
+    /// the loop refreshes a source's snapshot on every wake-up, and copying the whole
+    /// window each time cost more than the model's head. A `seen` ahead of this ring
+    /// (the source's state was made anew) copies everything.
+    fn update(&self, copy: &mut [u64; LATENCY_WINDOW], seen: u64) -> u64 {
+        let new = self
+            .pushed
+            .checked_sub(seen)
+            .map_or(LATENCY_WINDOW, |n| n.min(LATENCY_WINDOW as u64) as usize);
+        let start = (self.next + LATENCY_WINDOW - new) % LATENCY_WINDOW;
+        let first = new.min(LATENCY_WINDOW - start);
+        copy[start..start + first].copy_from_slice(&self.ns[start..start + first]);
+        copy[..new - first].copy_from_slice(&self.ns[..new - first]);
+        self.pushed
     }
 }
 
@@ -74,6 +95,8 @@ struct SourceSnapshot {
     last: Option<HeadingEstimate>,
     latencies: Box<[u64; LATENCY_WINDOW]>,
     latency_len: usize,
+    /// The ring's push count when `latencies` was last brought up to date.
+    latency_seen: u64,
 }
 
 /// State shared between the loop (writer) and the queryables (readers). A source
@@ -207,7 +230,7 @@ impl Shared {
                 s.counters = state.tracker.counters;
                 s.served = served;
                 s.last = state.last;
-                s.latencies.copy_from_slice(&ring.ns[..]);
+                s.latency_seen = ring.update(&mut s.latencies, s.latency_seen);
                 s.latency_len = ring.len;
             }
             None => {
@@ -217,6 +240,7 @@ impl Shared {
                     last: state.last,
                     latencies: ring.ns.clone(),
                     latency_len: ring.len,
+                    latency_seen: ring.pushed,
                 };
                 self.sources.insert(source.to_owned(), snapshot);
             }
@@ -447,6 +471,30 @@ impl HeadingOutput for ZenohOutput {
 
 #[cfg(test)]
 mod tests {
+    use super::{LatencyRing, LATENCY_WINDOW};
+
+    /// A copy brought up to date now and then, over wrap-arounds and bursts longer
+    /// than the window, equals the ring; a fresh ring behind the copy replaces it.
+    #[test]
+    fn latency_copy_takes_what_is_new() {
+        let mut ring = LatencyRing::new();
+        let mut copy = Box::new([0u64; LATENCY_WINDOW]);
+        let mut seen = 0;
+        let mut v = 1u64;
+        for burst in [1usize, 3, 700, 1, 1500, 1023, 1024, 1025, 5, 2048, 17] {
+            for _ in 0..burst {
+                ring.push(v);
+                v += 1;
+            }
+            seen = ring.update(&mut copy, seen);
+            assert_eq!(copy[..], ring.ns[..], "after a burst of {burst}");
+        }
+        let mut fresh = LatencyRing::new();
+        fresh.push(7);
+        seen = fresh.update(&mut copy, seen);
+        assert_eq!((seen, &copy[..]), (1, &fresh.ns[..]));
+    }
+
     #[test]
     fn port_zero_is_resolved_and_others_are_kept() {
         let r = super::resolve_port_zero("tcp/127.0.0.1:0").unwrap();

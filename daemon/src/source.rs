@@ -178,6 +178,12 @@ impl Source {
         owner: &mut Vec<usize>,
         me: usize,
     ) -> bool {
+        // A source met when the batch is already full waits for the next round, and
+        // drains then: draining costs atomic swaps on a bitset the publishers write to,
+        // and a wake-up of many sources would otherwise drain each once per round.
+        if batch.samples.len() >= batch.capacity() {
+            return false;
+        }
         if let Err(e) = self.velocity.drain_notifications() {
             debug!(source = %self.name, error = %e, "draining notifications failed");
         }
