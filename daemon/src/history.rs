@@ -27,10 +27,14 @@
 use std::sync::Arc;
 
 use ghnet_client::{HeadingEstimate, VelocitySample};
-use ghnet_models::stream::{Epoch, History, Reset, StreamPredictor};
+use ghnet_models::stream::{Epoch, History, Reset, StreamBatch, StreamPredictor};
 use ghnet_models::{Model, Prediction, Predictor, StatusPolicy};
 
 use crate::answer::{Booked, Counters, Limits, ModelTag, Sequence, Tracker};
+
+/// Most epochs in one staged pass: one per source that woke, up to the daemon's
+/// default source limit; more wait for the next pass.
+pub const STREAM_BATCH: usize = 128;
 
 /// The model as the daemon runs it.
 #[derive(Debug)]
@@ -39,12 +43,17 @@ pub enum Runner {
     /// (about half the cost per sample); no history. Boxed: its batch scratch is much
     /// larger than the stream predictor (one per daemon either way).
     Epoch(Box<Predictor>),
-    /// A stateful model: one sample at a time against its source's history.
+    /// A stateful model: each sample against its source's history, in order; the
+    /// samples of sources that woke together may share one pass of a temporal
+    /// network's convolutions (bit for bit the answers of one at a time).
     Stream {
         /// Runs the model; its scratch serves every source.
         predictor: StreamPredictor,
         /// `history.max_gap_s`, replacing the model's own gap limit.
         max_gap_s: Option<f64>,
+        /// One pass's staged epochs (`None` for `kf`, which has no network). Boxed:
+        /// the enum stays small.
+        batch: Option<Box<StreamBatch>>,
     },
 }
 
@@ -53,9 +62,12 @@ impl Runner {
     /// stateful model, an optional gap limit replacing the model's.
     pub fn new(model: Arc<Model>, policy: StatusPolicy, max_gap_s: Option<f64>) -> Self {
         if model.is_stateful() {
+            let predictor = StreamPredictor::new(model).with_policy(policy);
+            let batch = predictor.batch(STREAM_BATCH).map(Box::new);
             Runner::Stream {
-                predictor: StreamPredictor::new(model).with_policy(policy),
+                predictor,
                 max_gap_s,
+                batch,
             }
         } else {
             Runner::Epoch(Box::new(Predictor::new(model).with_policy(policy)))
@@ -69,6 +81,7 @@ impl Runner {
             Runner::Stream {
                 predictor,
                 max_gap_s,
+                ..
             } => {
                 let h = predictor.history();
                 let h = match max_gap_s {
@@ -111,6 +124,93 @@ impl Runner {
                 tracker.finish(s, p, tag)
             }
         }
+    }
+
+    /// Step 1 of a staged pass over sources that woke together (temporal models):
+    /// books `s` and stages its epoch. `Ok(column)` waits for
+    /// [`run_staged`](Self::run_staged) and [`complete`](Self::complete); `Err` is the
+    /// final answer (not for the model, a repeat, bad input, a full pass, a model
+    /// without stages). At most one sample per source per pass.
+    pub fn stage(
+        &mut self,
+        tracker: &mut Tracker,
+        history: Option<&mut SourceHistory>,
+        s: &VelocitySample,
+        limits: &Limits,
+        tag: &ModelTag,
+    ) -> Result<usize, HeadingEstimate> {
+        if !self.stages() || history.is_none() {
+            return Err(self.answer(tracker, history, s, limits, tag));
+        }
+        let (predictor, batch, history) = self.staged_parts(history).expect("checked above");
+        let booked = tracker.book_detailed(s, limits);
+        (history.stage(predictor, batch, s, booked, &mut tracker.counters))
+            .map_err(|p| tracker.finish(s, p, tag))
+    }
+
+    /// Step 2: the convolutions of every staged epoch, one pass.
+    pub fn run_staged(&mut self) {
+        if let Runner::Stream {
+            predictor,
+            batch: Some(batch),
+            ..
+        } = self
+        {
+            predictor.run(batch);
+        }
+    }
+
+    /// Step 3: the answer to `s`, staged in `column` with its source's `history`.
+    pub fn complete(
+        &mut self,
+        tracker: &mut Tracker,
+        history: Option<&mut SourceHistory>,
+        s: &VelocitySample,
+        column: usize,
+        tag: &ModelTag,
+    ) -> HeadingEstimate {
+        let (predictor, batch, history) = (self.staged_parts(history))
+            .expect("only a sample staged with its history is completed");
+        let p = history.complete(predictor, batch, column, s, &mut tracker.counters);
+        tracker.finish(s, Some(p), tag)
+    }
+
+    /// The parts a staged pass works with, if this model stages and `history` is given.
+    fn staged_parts<'a>(
+        &'a mut self,
+        history: Option<&'a mut SourceHistory>,
+    ) -> Option<(
+        &'a mut StreamPredictor,
+        &'a mut StreamBatch,
+        &'a mut SourceHistory,
+    )> {
+        match (self, history) {
+            (
+                Runner::Stream {
+                    predictor,
+                    batch: Some(batch),
+                    ..
+                },
+                Some(history),
+            ) => Some((predictor, batch, history)),
+            _ => None,
+        }
+    }
+
+    /// Starts a staged pass: nothing staged.
+    pub fn clear_staged(&mut self) {
+        if let Runner::Stream {
+            batch: Some(batch), ..
+        } = self
+        {
+            batch.clear();
+        }
+    }
+
+    /// Whether this model answers sources that woke together in staged passes (a
+    /// temporal network; not `kf` nor a per-epoch model).
+    pub fn stages(&self) -> bool {
+        matches!(self, Runner::Stream { batch: Some(_), .. })
     }
 
     /// The per-epoch predictor, for the batched path; `None` for a stateful model,
@@ -157,6 +257,58 @@ impl SourceHistory {
         booked: Booked,
         counters: &mut Counters,
     ) -> Option<Prediction> {
+        if let Some(answer) = self.before_model(s, booked, counters) {
+            return answer;
+        }
+        let p = predictor.predict(&mut self.history, &epoch(s));
+        self.after_model(s.seq, p, counters);
+        Some(p)
+    }
+
+    /// [`predict`](Self::predict) with the model's part staged in `batch`
+    /// ([`StreamPredictor::stage`]): `Ok(column)` when the epoch waits there (finish
+    /// with [`complete`](Self::complete)), `Err` with the final answer otherwise.
+    pub fn stage(
+        &mut self,
+        predictor: &mut StreamPredictor,
+        batch: &mut StreamBatch,
+        s: &VelocitySample,
+        booked: Booked,
+        counters: &mut Counters,
+    ) -> Result<usize, Option<Prediction>> {
+        if let Some(answer) = self.before_model(s, booked, counters) {
+            return Err(answer);
+        }
+        predictor
+            .stage(batch, &mut self.history, &epoch(s))
+            .map_err(|p| {
+                self.after_model(s.seq, p, counters);
+                Some(p)
+            })
+    }
+
+    /// The model's answer to `s`, staged in `column` of `batch` by [`stage`](Self::stage).
+    pub fn complete(
+        &mut self,
+        predictor: &mut StreamPredictor,
+        batch: &StreamBatch,
+        column: usize,
+        s: &VelocitySample,
+        counters: &mut Counters,
+    ) -> Prediction {
+        let p = predictor.complete(batch, column, &mut self.history);
+        self.after_model(s.seq, p, counters);
+        p
+    }
+
+    /// The daemon's rules before the model: `Some(answer)` when the model must not
+    /// run (`None` inside: not for the model; a repeat gets its first answer).
+    fn before_model(
+        &mut self,
+        s: &VelocitySample,
+        booked: Booked,
+        counters: &mut Counters,
+    ) -> Option<Option<Prediction>> {
         if booked.sequence == Sequence::Lower {
             self.restart(counters);
         } else if booked.backwards && !self.history.is_empty() {
@@ -164,24 +316,28 @@ impl SourceHistory {
             counters.resets_backwards += 1;
         }
         if !booked.model {
-            return None;
+            return Some(None);
         }
         if booked.sequence == Sequence::Repeat {
             if let Some((seq, p)) = self.last {
                 if seq == s.seq {
-                    return Some(p);
+                    return Some(Some(p));
                 }
             }
         }
-        let p = predictor.predict(&mut self.history, &epoch(s));
+        None
+    }
+
+    /// After the model answered `seq` with `p`: counts the reset its history made,
+    /// keeps the answer for a repeat.
+    fn after_model(&mut self, seq: u64, p: Prediction, counters: &mut Counters) {
         match self.history.last_reset() {
             Some(Reset::Gap) => counters.resets_gap += 1,
             Some(Reset::Backwards) => counters.resets_backwards += 1,
             Some(Reset::Explicit) => counters.resets_restart += 1,
             None => {}
         }
-        self.last = Some((s.seq, p));
-        Some(p)
+        self.last = Some((seq, p));
     }
 }
 

@@ -333,10 +333,15 @@ impl ZenohSide {
     }
 
     /// Refreshes the snapshot of a served `source` unless a query is reading it right
-    /// now (the loop never waits for a query; the next wake-up refreshes again).
-    pub(crate) fn refresh(&self, source: &str, state: &State) {
-        if let Ok(mut shared) = self.shared.try_lock() {
-            shared.write(source, state, true);
+    /// now (the loop never waits for a query); `false` then, and the caller tries
+    /// again later (`Source::catch_up_snapshot`).
+    pub(crate) fn refresh(&self, source: &str, state: &State) -> bool {
+        match self.shared.try_lock() {
+            Ok(mut shared) => {
+                shared.write(source, state, true);
+                true
+            }
+            Err(_) => false,
         }
     }
 

@@ -85,6 +85,16 @@ struct Wake {
     more: Vec<usize>,
     /// Per source: answered something in this wake-up (so flush its outputs).
     answered: Vec<bool>,
+    /// The sources that fired, as they were before the rounds: settled once each at
+    /// the end of the wake-up.
+    woken: Vec<usize>,
+    /// Per source: its notifications were drained in this wake-up.
+    drained: Vec<bool>,
+    /// Per sample of a round: how many of its source's samples precede it in the round
+    /// (its staged pass).
+    pass: Vec<usize>,
+    /// One staged pass: `(sample, column)`.
+    staged: Vec<(usize, usize)>,
 }
 
 impl Wake {
@@ -93,6 +103,10 @@ impl Wake {
         self.owner = Vec::with_capacity(BATCH);
         self.more = Vec::with_capacity(sources);
         self.answered = vec![false; sources];
+        self.woken = Vec::with_capacity(sources);
+        self.drained = vec![false; sources];
+        self.pass = Vec::with_capacity(BATCH);
+        self.staged = Vec::with_capacity(BATCH);
     }
 }
 
@@ -337,38 +351,60 @@ impl Daemon {
     }
 
     /// Answers everything the sources in `wake.fired` have buffered, in rounds of up
-    /// to [`BATCH`] samples.
+    /// to [`BATCH`] samples, each source taking an equal share of a round; then
+    /// settles each woken source once (one wake-up of its listeners for all its
+    /// answers, however many rounds they took).
     fn serve_fired(&mut self, sources: &[Source]) {
+        let wake = &mut self.wake;
+        wake.woken.clear();
+        wake.woken.extend_from_slice(&wake.fired);
+        for &f in &wake.woken {
+            wake.drained[f] = false;
+        }
         while !self.wake.fired.is_empty() {
             self.serve_round(sources);
             // Sources with more than fitted go again.
             std::mem::swap(&mut self.wake.fired, &mut self.wake.more);
         }
+        let wake = &mut self.wake;
+        for &f in &wake.woken {
+            let answered = std::mem::take(&mut wake.answered[f]);
+            sources[f].settle(answered, self.zenoh.as_ref());
+        }
     }
 
-    /// One round over the sources in `wake.fired`: take their buffered samples in
-    /// order, up to [`BATCH`] in all, answer them, then notify each source's
-    /// listeners once. Fewer than [`BATCH_MIN`] samples (the normal case: one source,
-    /// one sample in flight) take the one-sample path, the lowest latency; more go
-    /// through the model in one call, whether they come from one source that fell
-    /// behind or from many that woke together (receivers on one epoch), and over
-    /// Zenoh as one network batch: only the round's last heading is express. Sources
-    /// with more samples than fitted are left in `wake.more`. Allocates nothing.
+    /// One round over the sources in `wake.fired`: take a share of each one's
+    /// buffered samples in order, up to [`BATCH`] in all, and answer them. Fewer than
+    /// [`BATCH_MIN`] samples (the normal case: one source, one sample in flight) take
+    /// the one-sample path, the lowest latency; more go through the model together,
+    /// whether they come from one source that fell behind or from many that woke
+    /// together: a per-epoch model in one batched call, a temporal model in staged
+    /// passes ([`serve_passes`](Self::serve_passes)); over Zenoh as one network batch,
+    /// only the round's last heading express. Sources with more samples than fitted
+    /// are left in `wake.more`. Allocates nothing.
     fn serve_round(&mut self, sources: &[Source]) {
         let (batch, wake) = (&mut self.batch, &mut self.wake);
         batch.clear();
         wake.owner.clear();
         wake.more.clear();
+        // A share per source: many sources that woke together each put about one
+        // sample in a round (so a temporal model's pass has one per source), one
+        // source that fell behind fills the round.
+        let share = (BATCH / wake.fired.len().max(1)).max(1);
         for &f in &wake.fired {
-            if !sources[f].take_samples(batch, &mut wake.owner, f) {
+            let drain = !std::mem::replace(&mut wake.drained[f], true);
+            if !sources[f].take_samples(batch, &mut wake.owner, f, share, drain) {
                 wake.more.push(f);
             }
         }
         let n = batch.samples.len();
-        // A stateful model takes every sample alone, in order, against its source's
-        // history; a per-epoch model batches from BATCH_MIN samples on.
+        // From BATCH_MIN samples on, a per-epoch model batches and a temporal one
+        // stages passes; `kf` (and any round under BATCH_MIN) takes every sample
+        // alone, in order, against its source's history.
         let batched = n >= BATCH_MIN && self.runner.batched().is_some();
-        if !batched {
+        if n >= BATCH_MIN && self.runner.stages() {
+            self.serve_passes(sources);
+        } else if !batched {
             for i in 0..n {
                 let (t0, f) = (Instant::now(), wake.owner[i]);
                 let mut state = sources[f].state.borrow_mut();
@@ -390,9 +426,55 @@ impl Daemon {
                 wake.answered[f] |= sources[f].deliver(&mut state, answer, t0, Burst::of(i, n));
             }
         }
-        for &f in &wake.fired {
-            let answered = std::mem::take(&mut wake.answered[f]);
-            sources[f].settle(answered, self.zenoh.as_ref());
+    }
+
+    /// A round through a temporal model in staged passes: pass `k` holds the `k`-th
+    /// sample of every source in the round, their convolutions run together (the
+    /// weights read once for all of them), then each is answered in its source's
+    /// order. Answers are bit for bit those of one sample at a time.
+    fn serve_passes(&mut self, sources: &[Source]) {
+        let (batch, wake, runner) = (&self.batch, &mut self.wake, &mut self.runner);
+        let n = batch.samples.len();
+        // A source's samples are contiguous in the round, in arrival order.
+        wake.pass.clear();
+        for i in 0..n {
+            let k = match i.checked_sub(1) {
+                Some(j) if wake.owner[j] == wake.owner[i] => wake.pass[j] + 1,
+                _ => 0,
+            };
+            wake.pass.push(k);
+        }
+        let passes = wake.pass.iter().max().map_or(0, |k| k + 1);
+        let mut done = 0;
+        for k in 0..passes {
+            let t0 = Instant::now();
+            runner.clear_staged();
+            wake.staged.clear();
+            for i in (0..n).filter(|&i| wake.pass[i] == k) {
+                let f = wake.owner[i];
+                let mut state = sources[f].state.borrow_mut();
+                let (tracker, history) = state.model_parts();
+                let s = &batch.samples[i];
+                match runner.stage(tracker, history, s, &self.limits, &self.tag) {
+                    Ok(column) => wake.staged.push((i, column)),
+                    Err(answer) => {
+                        let burst = Burst::of(done, n);
+                        wake.answered[f] |= sources[f].deliver(&mut state, answer, t0, burst);
+                        done += 1;
+                    }
+                }
+            }
+            runner.run_staged();
+            for &(i, column) in &wake.staged {
+                let f = wake.owner[i];
+                let mut state = sources[f].state.borrow_mut();
+                let (tracker, history) = state.model_parts();
+                let s = &batch.samples[i];
+                let answer = runner.complete(tracker, history, s, column, &self.tag);
+                let burst = Burst::of(done, n);
+                wake.answered[f] |= sources[f].deliver(&mut state, answer, t0, burst);
+                done += 1;
+            }
         }
     }
 
@@ -407,6 +489,7 @@ impl Daemon {
         let mut changes = Changes::default();
         for (i, s) in sources.iter().enumerate() {
             s.watch_silence(now, stale_after, self.zenoh.as_ref());
+            s.catch_up_snapshot(self.zenoh.as_ref());
             if s.is_gone(stale_after) {
                 changes.remove.push(i);
             }

@@ -63,9 +63,17 @@ pub(crate) struct State {
     pub(crate) last: Option<HeadingEstimate>,
     pub(crate) latency: LatencyRing,
     silence: Silence,
+    /// The stats snapshot missed this state's last change (a query held it): the
+    /// next housekeeping pass refreshes it, since the source may send nothing more.
+    snapshot_behind: bool,
 }
 
 impl State {
+    /// What the model's steps take of this state: the tracker and the history.
+    pub(crate) fn model_parts(&mut self) -> (&mut Tracker, Option<&mut SourceHistory>) {
+        (&mut self.tracker, self.history.as_mut())
+    }
+
     /// Books `s` and answers it with `runner`, through this source's history for a
     /// stateful model. `processing_ns` is left at 0.
     pub(crate) fn answer(
@@ -127,6 +135,7 @@ impl Source {
                 history,
                 last: None,
                 latency: LatencyRing::new(),
+                snapshot_behind: false,
             }),
         })
     }
@@ -168,26 +177,27 @@ impl Source {
         );
     }
 
-    /// Takes this source's buffered samples into `batch` (`owner` records `me` per
-    /// sample) until the batch is full or the buffer is empty. Consumes the pending
-    /// wake-up notifications first, or the WaitSet fires again at once. `true` when
-    /// the buffer was emptied, `false` when samples are left for another round.
+    /// Takes up to `share` of this source's buffered samples into `batch` (`owner`
+    /// records `me` per sample), fewer if the batch fills. With `drain` (once per
+    /// wake-up: draining costs atomic swaps on a bitset the publishers write to)
+    /// consumes the pending wake-up notifications first, or the WaitSet fires again
+    /// at once. `true` when the buffer was emptied, `false` when samples are left for
+    /// another round.
     pub(crate) fn take_samples(
         &self,
         batch: &mut Batch,
         owner: &mut Vec<usize>,
         me: usize,
+        share: usize,
+        drain: bool,
     ) -> bool {
-        // A source met when the batch is already full waits for the next round, and
-        // drains then: draining costs atomic swaps on a bitset the publishers write to,
-        // and a wake-up of many sources would otherwise drain each once per round.
-        if batch.samples.len() >= batch.capacity() {
-            return false;
+        if drain {
+            if let Err(e) = self.velocity.drain_notifications() {
+                debug!(source = %self.name, error = %e, "draining notifications failed");
+            }
         }
-        if let Err(e) = self.velocity.drain_notifications() {
-            debug!(source = %self.name, error = %e, "draining notifications failed");
-        }
-        while batch.samples.len() < batch.capacity() {
+        let end = batch.capacity().min(batch.samples.len() + share);
+        while batch.samples.len() < end {
             match self.velocity.try_recv() {
                 Ok(Some(s)) => {
                     batch.samples.push(s);
@@ -260,7 +270,17 @@ impl Source {
             }
         }
         if let Some(z) = zenoh {
-            z.refresh(&self.name, &self.state.borrow());
+            let mut state = self.state.borrow_mut();
+            state.snapshot_behind = !z.refresh(&self.name, &state);
+        }
+    }
+
+    /// Housekeeping: refreshes the stats snapshot if a query kept the last refresh
+    /// out, so a source that went quiet right after is not reported stale forever.
+    pub(crate) fn catch_up_snapshot(&self, zenoh: Option<&ZenohSide>) {
+        let mut state = self.state.borrow_mut();
+        if let (Some(z), true) = (zenoh, state.snapshot_behind) {
+            state.snapshot_behind = !z.refresh(&self.name, &state);
         }
     }
 
@@ -314,7 +334,7 @@ impl Source {
         tracker.counters.stale += 1;
         self.publish_stale(&last, silent);
         if let Some(z) = zenoh {
-            z.refresh(&self.name, &state);
+            state.snapshot_behind = !z.refresh(&self.name, &state);
         }
     }
 

@@ -350,3 +350,67 @@ fn interleaved_sources_keep_separate_histories() {
     let d = north.heading_deg.min(360.0 - north.heading_deg);
     assert!(d < 3.0, "{north:?}");
 }
+
+/// (6) Several sources whose samples pile up (bursts of 1 to 8 published before one
+/// wake-up each, all sources before any wake-up) go through ghnet-temporal in staged
+/// passes, the convolutions of many sources in one call: every answer still equals,
+/// to the bit, what an in-process `StreamPredictor` gives that source alone, in order.
+#[test]
+fn sources_answered_together_equal_each_alone_bit_for_bit() {
+    let params = DriveParams {
+        tracks: 6,
+        platform_share: 0.3,
+        track_min_s: 30.0,
+        track_max_s: 30.0,
+        ..DriveParams::default()
+    };
+    let tracks = simulate(&params, 21);
+    let names: Vec<String> = (0..tracks.len()).map(|k| format!("burst{k}")).collect();
+    let ns = TestNamespace::new("passes");
+    let b = (names.iter())
+        .fold(Ghnetd::builder(&ns), |b, n| b.source(n))
+        .discovery(false)
+        .model("ghnet-temporal");
+    let daemon = b.start();
+    let ends: Vec<_> = names.iter().map(|n| daemon.ends(n)).collect();
+    let model = Arc::new(Model::builtin("ghnet-temporal").unwrap());
+    let mut sp = StreamPredictor::new(model);
+    let mut histories: Vec<_> = tracks.iter().map(|_| sp.history()).collect();
+    let t0 = now_ns();
+    let mut next = vec![0usize; tracks.len()];
+    let (mut round, mut answered) = (0usize, 0usize);
+    while next.iter().zip(&tracks).any(|(&i, t)| i < t.samples.len()) {
+        // Publish every source's burst first, then wake the daemon source by source.
+        let mut sent: Vec<Vec<VelocitySample>> = vec![];
+        for (k, ((gnss, _), t)) in ends.iter().zip(&tracks).enumerate() {
+            let len = (1 + (round * 3 + k) % 8).min(t.samples.len() - next[k]);
+            let burst: Vec<VelocitySample> = (next[k]..next[k] + len)
+                .map(|i| {
+                    let d = &t.samples[i];
+                    let at = t0 + (d.t_s * 1e9) as u64;
+                    let mut s = VelocitySample::new(at, i as u64, d.v_north, d.v_east, 0.0);
+                    s.speed_accuracy = d.speed_acc;
+                    s
+                })
+                .collect();
+            burst.iter().for_each(|s| gnss.publish(*s).unwrap());
+            next[k] += len;
+            sent.push(burst);
+        }
+        ends.iter().for_each(|(gnss, _)| gnss.notify().unwrap());
+        for (k, burst) in sent.iter().enumerate() {
+            for s in burst {
+                let h = recv_answer(&ends[k].1, WATCHDOG).expect("an answer");
+                assert_eq!(h.seq, s.seq, "source {k}: answers in order");
+                let want = sp.predict(&mut histories[k], &epoch(s));
+                assert_same(&h, &want, &format!("source {k} seq {}", s.seq));
+                answered += 1;
+            }
+        }
+        round += 1;
+    }
+    eprintln!(
+        "{answered} answers of {} sources equal to the bit",
+        tracks.len()
+    );
+}

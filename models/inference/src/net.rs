@@ -354,12 +354,15 @@ unsafe fn dense<V: Simd, const NR: usize, const GELU: bool>(
 ) {
     let rv = d.rows_padded() / V::LANES;
     if n == 1 {
-        // Matrix-vector: MR row vectors × S partial sums = 8 to 12 independent chains.
+        // One sample: as many row vectors at once as divide the layer (up to 6
+        // independent FMA chains), each output summed in the batch kernel's order, so a
+        // sample's outputs do not depend on which others shared its batch.
         match rv {
-            _ if rv.is_multiple_of(4) => matvec::<V, 4, 2, GELU>(d, x, y),
-            _ if rv.is_multiple_of(3) => matvec::<V, 3, 4, GELU>(d, x, y),
-            _ if rv.is_multiple_of(2) => matvec::<V, 2, 4, GELU>(d, x, y),
-            _ => matvec::<V, 1, 8, GELU>(d, x, y),
+            _ if rv.is_multiple_of(6) => matmul::<V, 6, 1, GELU>(d, x, xs, n, y),
+            _ if rv.is_multiple_of(4) => matmul::<V, 4, 1, GELU>(d, x, xs, n, y),
+            _ if rv.is_multiple_of(3) => matmul::<V, 3, 1, GELU>(d, x, xs, n, y),
+            _ if rv.is_multiple_of(2) => matmul::<V, 2, 1, GELU>(d, x, xs, n, y),
+            _ => matmul::<V, 1, 1, GELU>(d, x, xs, n, y),
         }
     } else {
         match rv {
@@ -439,55 +442,6 @@ unsafe fn tile<V: Simd, const MR: usize, const NR: usize, const GELU: bool>(
             let v = if GELU { gelu_v(a) } else { a };
             v.store(y.add((j0 + c) * rows + r0 + m * V::LANES));
         }
-    }
-}
-
-/// The single-sample kernel: `MR` row vectors at a time, the sum over inputs split into
-/// `S` interleaved partial sums so that `MR·S` FMA chains run in parallel.
-#[inline(always)]
-unsafe fn matvec<V: Simd, const MR: usize, const S: usize, const GELU: bool>(
-    d: &Dense,
-    x: *const f32,
-    y: *mut f32,
-) {
-    let rows = d.rows_padded();
-    let k = d.k;
-    let mut r0 = 0;
-    while r0 < rows {
-        let w = d.w.as_slice().as_ptr().add(r0);
-        let b = d.b.as_slice().as_ptr().add(r0);
-        let mut acc = [[V::splat(0.0); S]; MR];
-        for (m, row) in acc.iter_mut().enumerate() {
-            row[0] = V::load(b.add(m * V::LANES));
-        }
-        let mut kk = 0;
-        while kk + S <= k {
-            for s in 0..S {
-                let xv = V::splat(*x.add(kk + s));
-                let wk = w.add((kk + s) * rows);
-                for (m, row) in acc.iter_mut().enumerate() {
-                    row[s] = V::load(wk.add(m * V::LANES)).mul_add(xv, row[s]);
-                }
-            }
-            kk += S;
-        }
-        while kk < k {
-            let xv = V::splat(*x.add(kk));
-            let wk = w.add(kk * rows);
-            for (m, row) in acc.iter_mut().enumerate() {
-                row[0] = V::load(wk.add(m * V::LANES)).mul_add(xv, row[0]);
-            }
-            kk += 1;
-        }
-        for (m, row) in acc.iter().enumerate() {
-            let mut a = row[0];
-            for &p in &row[1..] {
-                a = a.add(p);
-            }
-            let v = if GELU { gelu_v(a) } else { a };
-            v.store(y.add(r0 + m * V::LANES));
-        }
-        r0 += MR * V::LANES;
     }
 }
 
@@ -628,6 +582,42 @@ mod tests {
                 for o in 0..k {
                     let err = (one[o] as f64 - w[o]).abs() / scale;
                     assert!(err < tol, "{kernel} single [{o}]: {err}");
+                }
+            }
+        }
+    }
+
+    /// A sample's outputs are the same bits alone and in a batch of any size or
+    /// position, on every kernel: a stream may batch the epochs of sources that woke
+    /// together and still answer each as it would alone.
+    #[test]
+    fn batched_and_single_outputs_are_bit_identical() {
+        let model = crate::Model::builtin("ghnet-temporal").expect("embedded model");
+        let base = model.network().expect("network").clone();
+        let inputs = base.arch().input;
+        let n = 21; // two full 8-sample tiles and a remainder
+        let xm = Mat::from_fn(inputs, n, |i, j| {
+            ((i * 7 + j * 13) % 17) as f32 * 0.21 - 1.6
+        });
+        for kernel in Kernel::available() {
+            let net = base.clone().with_kernel(kernel);
+            let k = net.outputs();
+            let mut one = vec![0.0f32; k];
+            let mut s1 = net.scratch(1);
+            for max_batch in [n, 8, 5] {
+                let mut s = net.scratch(max_batch);
+                let mut out = Mat::zeros(k, n);
+                net.forward(xm.as_ref(), out.as_mut(), &mut s);
+                for j in 0..n {
+                    let x: Vec<f32> = (0..inputs).map(|i| xm[(i, j)]).collect();
+                    net.forward_one(&x, &mut one, &mut s1);
+                    for (o, &v) in one.iter().enumerate() {
+                        assert_eq!(
+                            v.to_bits(),
+                            out[(o, j)].to_bits(),
+                            "{kernel} batch of {n} by {max_batch}: output {o} of sample {j}"
+                        );
+                    }
                 }
             }
         }

@@ -455,6 +455,78 @@ impl History {
     }
 }
 
+/// Epochs per pass of a [`StreamBatch`] through the convolutions: their activations
+/// (about 1.7 KiB each for Table I) stay in the core's cache while the weights stream.
+const STREAM_CHUNK: usize = 64;
+
+/// One staged epoch between the mode filter's step and the head.
+#[derive(Debug, Clone, Copy)]
+struct Pending {
+    step: Step,
+    had_prior: bool,
+    /// `[v_north, v_east, speed, sAcc]`.
+    epoch: [f32; 4],
+    dt: f32,
+}
+
+/// Epochs of several sources waiting for one pass through a temporal model's
+/// convolutions ([`StreamPredictor::stage`], [`run`](StreamPredictor::run),
+/// [`complete`](StreamPredictor::complete)). Sized once; staging allocates nothing.
+#[derive(Debug)]
+pub struct StreamBatch {
+    /// Network inputs, one column per staged epoch.
+    x: faer::Mat<f32>,
+    /// Their features after [`StreamPredictor::run`].
+    features: faer::Mat<f32>,
+    scratch: Scratch,
+    pending: Vec<Pending>,
+}
+
+impl StreamBatch {
+    /// Empties the batch for the next pass.
+    pub fn clear(&mut self) {
+        self.pending.clear();
+    }
+
+    /// Epochs staged since the last [`clear`](Self::clear).
+    pub fn len(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// Whether nothing is staged.
+    pub fn is_empty(&self) -> bool {
+        self.pending.is_empty()
+    }
+}
+
+/// The temporal step before the convolutions: the mode filter's step on `h` and the
+/// network's inputs for it.
+fn begin(
+    model: &Model,
+    h: &mut History,
+    epoch: [f32; 4],
+    dt: f32,
+    had_prior: bool,
+) -> (Pending, [f32; INPUTS]) {
+    let ModelKind::Temporal {
+        sigma_v_mps, modes, ..
+    } = &model.meta().kind
+    else {
+        unreachable!("a temporal engine has a temporal kind")
+    };
+    let [vn, ve, _, acc] = epoch;
+    let prev = h.state;
+    let step = prepare(modes, *sigma_v_mps, &mut h.state, vn, ve, acc, dt);
+    let x = inputs(&prev, &h.state, &step, vn, ve, acc, dt);
+    let pending = Pending {
+        step,
+        had_prior,
+        epoch,
+        dt,
+    };
+    (pending, x)
+}
+
 /// Runs any model on a stream of epochs; owns the scratch, so a step allocates nothing.
 /// One per thread; one [`History`] per source.
 #[derive(Debug)]
@@ -502,23 +574,9 @@ impl StreamPredictor {
     /// Answer one epoch of the source whose history is `h`. Never panics: a bad
     /// velocity gives [`Status::Invalid`] and leaves `h` untouched.
     pub fn predict(&mut self, h: &mut History, e: &Epoch) -> Prediction {
-        let (vn, ve) = (e.v_north, e.v_east);
-        let speed = vn.hypot(ve);
-        if !(vn.is_finite()
-            && ve.is_finite()
-            && speed <= self.policy.max_speed
-            && e.t_s.is_finite())
-        {
-            h.last_reset = None;
-            return Prediction {
-                speed,
-                ..Prediction::INVALID
-            };
-        }
-        let acc = if e.speed_acc.is_finite() && e.speed_acc > 0.0 {
-            e.speed_acc
-        } else {
-            f32::NAN
+        let (vn, ve, speed, acc) = match self.check(h, e) {
+            Ok(v) => v,
+            Err(p) => return p,
         };
         let dt = h.step_time(e.t_s);
         // Only a heading from earlier epochs can be held; a first epoch has none.
@@ -540,30 +598,135 @@ impl StreamPredictor {
                 self.y[..3].copy_from_slice(&[0.0, -1.0, 0.0]);
                 self.filter(h, &base, vn, ve, acc, dt, 1.0)
             }
-            Engine::Temporal { features, head } => {
-                let ModelKind::Temporal {
-                    sigma_v_mps,
-                    modes,
-                    sigma_map,
-                    ..
-                } = &model.meta().kind
-                else {
-                    unreachable!("a temporal engine has a temporal kind")
-                };
-                let prev = h.state;
-                let step = prepare(modes, *sigma_v_mps, &mut h.state, vn, ve, acc, dt);
-                let x = inputs(&prev, &h.state, &step, vn, ve, acc, dt);
+            Engine::Temporal { features, .. } => {
+                let (pending, x) = begin(&model, h, [vn, ve, speed, acc], dt, had_prior);
                 let scratch = self.scratch.as_mut().expect("network scratch");
                 features.forward_one(&x, h.push_slot(), scratch);
-                head.apply(&h.ring, h.newest, h.filled, &mut self.y[..3]);
-                let d = commit(&mut h.state, &step, &self.y[..3], dt);
-                (
-                    d.psi,
-                    reported_sigma(&step, d.log_sigma, self.y[2], &h.state, sigma_map),
-                )
+                return self.end(h, &pending);
             }
         };
         self.finish(psi, std_deg, had_prior, [vn, ve, speed, acc])
+    }
+
+    /// The epoch's velocity, speed and sAcc (NaN when absent) if it can be answered;
+    /// otherwise the `Invalid` answer, with `h` untouched.
+    fn check(&self, h: &mut History, e: &Epoch) -> Result<(f32, f32, f32, f32), Prediction> {
+        let (vn, ve) = (e.v_north, e.v_east);
+        let speed = vn.hypot(ve);
+        if !(vn.is_finite()
+            && ve.is_finite()
+            && speed <= self.policy.max_speed
+            && e.t_s.is_finite())
+        {
+            h.last_reset = None;
+            return Err(Prediction {
+                speed,
+                ..Prediction::INVALID
+            });
+        }
+        let acc = if e.speed_acc.is_finite() && e.speed_acc > 0.0 {
+            e.speed_acc
+        } else {
+            f32::NAN
+        };
+        Ok((vn, ve, speed, acc))
+    }
+
+    /// A batch for [`stage`](Self::stage) of up to `capacity` epochs (of as many
+    /// sources); `None` for a model without a temporal network, which has nothing to
+    /// batch. Allocated here, once.
+    pub fn batch(&self, capacity: usize) -> Option<StreamBatch> {
+        let Engine::Temporal { features, .. } = self.model.engine() else {
+            return None;
+        };
+        let capacity = capacity.max(1);
+        Some(StreamBatch {
+            x: faer::Mat::zeros(INPUTS, capacity),
+            features: faer::Mat::zeros(features.outputs(), capacity),
+            // Activations of a chunk stay in the core's cache while its weights stream.
+            scratch: features.scratch(capacity.min(STREAM_CHUNK)),
+            pending: Vec::with_capacity(capacity),
+        })
+    }
+
+    /// Batched streaming, step 1: everything of [`predict`](Self::predict) before the
+    /// convolutions, for epoch `e` of the source whose history is `h`. `Ok(column)`
+    /// when the epoch waits in `batch` for [`run`](Self::run) and
+    /// [`complete`](Self::complete); `Err(answer)` when it is already answered (bad
+    /// input, a model without a temporal network, a full batch). Stage at most one
+    /// epoch per history between two runs, and complete every staged one: its
+    /// history already counts its time.
+    ///
+    /// Why: a daemon serving many sources answers the epochs that arrived together in
+    /// one pass through the convolutions, which reads the weights once for all of them
+    /// instead of once per epoch; the answers are bit for bit those of `predict`.
+    pub fn stage(
+        &mut self,
+        batch: &mut StreamBatch,
+        h: &mut History,
+        e: &Epoch,
+    ) -> Result<usize, Prediction> {
+        if !matches!(self.model.engine(), Engine::Temporal { .. })
+            || batch.pending.len() == batch.x.ncols()
+        {
+            return Err(self.predict(h, e));
+        }
+        let epoch = {
+            let (vn, ve, speed, acc) = self.check(h, e)?;
+            [vn, ve, speed, acc]
+        };
+        let dt = h.step_time(e.t_s);
+        let had_prior = h.state.has_prior;
+        let (pending, x) = begin(&self.model, h, epoch, dt, had_prior);
+        let col = batch.pending.len();
+        batch.pending.push(pending);
+        for (i, v) in x.into_iter().enumerate() {
+            batch.x[(i, col)] = v;
+        }
+        Ok(col)
+    }
+
+    /// Batched streaming, step 2: the convolutions of every staged epoch, one pass.
+    pub fn run(&mut self, batch: &mut StreamBatch) {
+        let n = batch.pending.len();
+        if let (Engine::Temporal { features, .. }, true) = (self.model.engine(), n > 0) {
+            let StreamBatch {
+                x,
+                features: f,
+                scratch,
+                ..
+            } = batch;
+            features.forward(
+                x.as_ref().subcols(0, n),
+                f.as_mut().subcols_mut(0, n),
+                scratch,
+            );
+        }
+    }
+
+    /// Batched streaming, step 3: the answer to the epoch staged in `column`, which
+    /// must have been staged with the same history `h`.
+    pub fn complete(&mut self, batch: &StreamBatch, column: usize, h: &mut History) -> Prediction {
+        let f = batch.features.col(column);
+        for (slot, v) in h.push_slot().iter_mut().zip(f.iter()) {
+            *slot = *v;
+        }
+        self.end(h, &batch.pending[column])
+    }
+
+    /// The temporal step after the convolutions (whose features are h's newest slot):
+    /// the head over the window, the filter's update, σ and status.
+    fn end(&mut self, h: &mut History, pending: &Pending) -> Prediction {
+        let model = self.model.clone();
+        let (Engine::Temporal { head, .. }, ModelKind::Temporal { sigma_map, .. }) =
+            (model.engine(), &model.meta().kind)
+        else {
+            unreachable!("a temporal engine has a temporal kind")
+        };
+        head.apply(&h.ring, h.newest, h.filled, &mut self.y[..3]);
+        let d = commit(&mut h.state, &pending.step, &self.y[..3], pending.dt);
+        let std = reported_sigma(&pending.step, d.log_sigma, self.y[2], &h.state, sigma_map);
+        self.finish(d.psi, std, pending.had_prior, pending.epoch)
     }
 
     /// The filter step from outputs `self.y`: heading (radians) and reported σ
@@ -690,6 +853,61 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// Staged passes over several sources answer bit for bit as `predict` one epoch at
+    /// a time: sources of different lengths, waves of every size (a source joins a
+    /// pass while it has epochs left), bad epochs answered at staging, and a batch
+    /// smaller than a wave (the overflow answered alone). For every shipped model.
+    #[test]
+    fn staged_passes_answer_as_predict_does() {
+        let bits = |p: &Prediction| {
+            let f = [p.heading_deg, p.std_deg, p.atan2_deg, p.speed].map(f32::to_bits);
+            (f, p.status)
+        };
+        for name in ["ghnet-temporal", "kf", "ghnet-epoch"] {
+            let model = Arc::new(Model::builtin(name).expect("built-in"));
+            let sources: Vec<Vec<Epoch>> = (0..11)
+                .map(|k| {
+                    let mut d = drive(60 + 7 * k);
+                    d.iter_mut().for_each(|e| e.v_north += 0.3 * k as f32);
+                    let bad = (5 * k + 3) % d.len();
+                    d[bad].v_east = f32::NAN;
+                    d
+                })
+                .collect();
+            let mut alone = StreamPredictor::new(model.clone());
+            let want: Vec<Vec<Prediction>> = sources
+                .iter()
+                .map(|d| {
+                    let mut h = alone.history();
+                    d.iter().map(|e| alone.predict(&mut h, e)).collect()
+                })
+                .collect();
+            let mut sp = StreamPredictor::new(model.clone());
+            let mut batch = sp.batch(8);
+            assert_eq!(batch.is_some(), name == "ghnet-temporal", "{name}");
+            let Some(batch) = batch.as_mut() else {
+                continue;
+            };
+            let mut hs: Vec<History> = sources.iter().map(|_| sp.history()).collect();
+            let longest = sources.iter().map(Vec::len).max().unwrap();
+            for i in 0..longest {
+                batch.clear();
+                let mut staged = vec![];
+                for (k, d) in sources.iter().enumerate().filter(|(_, d)| i < d.len()) {
+                    match sp.stage(batch, &mut hs[k], &d[i]) {
+                        Ok(col) => staged.push((k, col)),
+                        Err(p) => assert_eq!(bits(&p), bits(&want[k][i]), "{name} {k} {i}"),
+                    }
+                }
+                sp.run(batch);
+                for (k, col) in staged {
+                    let p = sp.complete(batch, col, &mut hs[k]);
+                    assert_eq!(bits(&p), bits(&want[k][i]), "{name} source {k} epoch {i}");
+                }
+            }
+        }
     }
 
     /// The streamed answer equals recomputing every feature in the window from the
