@@ -95,6 +95,8 @@ struct Wake {
     pass: Vec<usize>,
     /// One staged pass: `(sample, column)`.
     staged: Vec<(usize, usize)>,
+    /// Per source: its samples counted so far in the round (all zero between rounds).
+    taken: Vec<usize>,
 }
 
 impl Wake {
@@ -107,6 +109,7 @@ impl Wake {
         self.drained = vec![false; sources];
         self.pass = Vec::with_capacity(BATCH);
         self.staged = Vec::with_capacity(BATCH);
+        self.taken = vec![0; sources];
     }
 }
 
@@ -435,14 +438,14 @@ impl Daemon {
     fn serve_passes(&mut self, sources: &[Source]) {
         let (batch, wake, runner) = (&self.batch, &mut self.wake, &mut self.runner);
         let n = batch.samples.len();
-        // A source's samples are contiguous in the round, in arrival order.
+        // Each source's samples are in the round in arrival order.
         wake.pass.clear();
-        for i in 0..n {
-            let k = match i.checked_sub(1) {
-                Some(j) if wake.owner[j] == wake.owner[i] => wake.pass[j] + 1,
-                _ => 0,
-            };
-            wake.pass.push(k);
+        for &f in &wake.owner {
+            wake.pass.push(wake.taken[f]);
+            wake.taken[f] += 1;
+        }
+        for &f in &wake.owner {
+            wake.taken[f] = 0;
         }
         let passes = wake.pass.iter().max().map_or(0, |k| k + 1);
         let mut done = 0;
