@@ -14,7 +14,8 @@
 //! WaitSet wake-up; Zenoh: the payload buffer and its reference count per `put`); the
 //! test prints both. Two patterns: one sample in flight (the normal case: the
 //! one-sample path) and bursts from several sources that wake together (the batch
-//! path: one model call and one Zenoh batch per round).
+//! path: one model call, or a temporal model's staged passes, and one Zenoh batch per
+//! round).
 
 mod common;
 
@@ -52,8 +53,9 @@ struct PerSample {
     bursts: f64,
 }
 
-/// The default model, `kf` and ghnet-temporal (stateful: every sample goes alone
-/// through its source's history), and the per-epoch model that batches.
+/// The default model, `kf` and ghnet-temporal (stateful: each sample against its
+/// source's history; ghnet-temporal's bursts in staged passes, one sample per source
+/// per pass), and the per-epoch model that batches.
 #[test]
 fn serve_path_allocates_no_more_than_its_libraries() {
     let mut models = vec![
