@@ -88,8 +88,6 @@ struct Wake {
     /// The sources that fired, as they were before the rounds: settled once each at
     /// the end of the wake-up.
     woken: Vec<usize>,
-    /// Per source: its notifications were drained in this wake-up.
-    drained: Vec<bool>,
     /// Per sample of a round: how many of its source's samples precede it in the round
     /// (its staged pass).
     pass: Vec<usize>,
@@ -106,7 +104,6 @@ impl Wake {
         self.more = Vec::with_capacity(sources);
         self.answered = vec![false; sources];
         self.woken = Vec::with_capacity(sources);
-        self.drained = vec![false; sources];
         self.pass = Vec::with_capacity(BATCH);
         self.staged = Vec::with_capacity(BATCH);
         self.taken = vec![0; sources];
@@ -361,11 +358,11 @@ impl Daemon {
         let wake = &mut self.wake;
         wake.woken.clear();
         wake.woken.extend_from_slice(&wake.fired);
-        for &f in &wake.woken {
-            wake.drained[f] = false;
-        }
+        // Every woken source meets the first round (a full batch only shortens its
+        // share to nothing), so draining there drains each once per wake-up.
+        let mut first = true;
         while !self.wake.fired.is_empty() {
-            self.serve_round(sources);
+            self.serve_round(sources, std::mem::take(&mut first));
             // Sources with more than fitted go again.
             std::mem::swap(&mut self.wake.fired, &mut self.wake.more);
         }
@@ -385,7 +382,7 @@ impl Daemon {
     /// passes ([`serve_passes`](Self::serve_passes)); over Zenoh as one network batch,
     /// only the round's last heading express. Sources with more samples than fitted
     /// are left in `wake.more`. Allocates nothing.
-    fn serve_round(&mut self, sources: &[Source]) {
+    fn serve_round(&mut self, sources: &[Source], drain: bool) {
         let (batch, wake) = (&mut self.batch, &mut self.wake);
         batch.clear();
         wake.owner.clear();
@@ -395,7 +392,6 @@ impl Daemon {
         // source that fell behind fills the round.
         let share = (BATCH / wake.fired.len().max(1)).max(1);
         for &f in &wake.fired {
-            let drain = !std::mem::replace(&mut wake.drained[f], true);
             if !sources[f].take_samples(batch, &mut wake.owner, f, share, drain) {
                 wake.more.push(f);
             }

@@ -487,16 +487,6 @@ impl StreamBatch {
     pub fn clear(&mut self) {
         self.pending.clear();
     }
-
-    /// Epochs staged since the last [`clear`](Self::clear).
-    pub fn len(&self) -> usize {
-        self.pending.len()
-    }
-
-    /// Whether nothing is staged.
-    pub fn is_empty(&self) -> bool {
-        self.pending.is_empty()
-    }
 }
 
 /// The temporal step before the convolutions: the mode filter's step on `h` and the
@@ -574,13 +564,10 @@ impl StreamPredictor {
     /// Answer one epoch of the source whose history is `h`. Never panics: a bad
     /// velocity gives [`Status::Invalid`] and leaves `h` untouched.
     pub fn predict(&mut self, h: &mut History, e: &Epoch) -> Prediction {
-        let (vn, ve, speed, acc) = match self.check(h, e) {
+        let ([vn, ve, speed, acc], dt, had_prior) = match self.open(h, e) {
             Ok(v) => v,
             Err(p) => return p,
         };
-        let dt = h.step_time(e.t_s);
-        // Only a heading from earlier epochs can be held; a first epoch has none.
-        let had_prior = h.state.has_prior;
         let model = self.model.clone();
         let (psi, std_deg) = match model.engine() {
             Engine::Epoch(net) => {
@@ -608,9 +595,11 @@ impl StreamPredictor {
         self.finish(psi, std_deg, had_prior, [vn, ve, speed, acc])
     }
 
-    /// The epoch's velocity, speed and sAcc (NaN when absent) if it can be answered;
-    /// otherwise the `Invalid` answer, with `h` untouched.
-    fn check(&self, h: &mut History, e: &Epoch) -> Result<(f32, f32, f32, f32), Prediction> {
+    /// Opens epoch `e` on `h` if it can be answered: `[v_north, v_east, speed, sAcc]`
+    /// (sAcc NaN when absent), the time step (the history's clock advanced, resets
+    /// applied) and whether the history held a heading before it (only one from
+    /// earlier epochs can be held). Otherwise the `Invalid` answer, `h` untouched.
+    fn open(&self, h: &mut History, e: &Epoch) -> Result<([f32; 4], f32, bool), Prediction> {
         let (vn, ve) = (e.v_north, e.v_east);
         let speed = vn.hypot(ve);
         if !(vn.is_finite()
@@ -629,7 +618,8 @@ impl StreamPredictor {
         } else {
             f32::NAN
         };
-        Ok((vn, ve, speed, acc))
+        let dt = h.step_time(e.t_s);
+        Ok(([vn, ve, speed, acc], dt, h.state.has_prior))
     }
 
     /// A batch for [`stage`](Self::stage) of up to `capacity` epochs (of as many
@@ -671,12 +661,7 @@ impl StreamPredictor {
         {
             return Err(self.predict(h, e));
         }
-        let epoch = {
-            let (vn, ve, speed, acc) = self.check(h, e)?;
-            [vn, ve, speed, acc]
-        };
-        let dt = h.step_time(e.t_s);
-        let had_prior = h.state.has_prior;
+        let (epoch, dt, had_prior) = self.open(h, e)?;
         let (pending, x) = begin(&self.model, h, epoch, dt, had_prior);
         let col = batch.pending.len();
         batch.pending.push(pending);
