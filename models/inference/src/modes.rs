@@ -200,6 +200,15 @@ pub struct StepState {
     /// A standing car's last rejected moving velocity, which the next epoch must
     /// confirm; NaN when none.
     pub pending_v: [f32; 2],
+    /// The network's σ correction (`y₂`, log units) at the last moving epoch: a
+    /// standing car's held heading keeps the uncertainty it stopped with, the network's
+    /// share of it included (a car that stopped out of a slow turn or a parking
+    /// manoeuvre holds a poorer heading than one that braked on a straight road).
+    pub held_y2: f32,
+    /// Whether the receiver was [`clean`] at the last moving epoch: a stop keeps the
+    /// σ map it started with, so the noise measured during the stop cannot make a held
+    /// σ jump down.
+    pub held_clean: bool,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -221,6 +230,8 @@ impl StepState {
         skips: 0,
         t_used: 0.0,
         pending_v: [f32::NAN; 2],
+        held_y2: 0.0,
+        held_clean: false,
         vehicle: Vehicle::UNKNOWN,
     };
 
@@ -670,36 +681,53 @@ pub struct SigmaMaps {
     pub car: SigmaMap,
     /// Other vehicles, moving epochs.
     pub platform: SigmaMap,
-    /// Cars, standing epochs.
+    /// Cars, standing epochs (of a receiver not known to be [`clean`]).
     pub car_still: SigmaMap,
+    /// Cars, standing epochs of a [`clean`] receiver; absent (identity) in older
+    /// files, which then use `car_still`.
+    pub car_still_clean: SigmaMap,
     /// Other vehicles, standing epochs.
     pub platform_still: SigmaMap,
 }
 
+/// A receiver is clean when the noise the filter measured at rest is under this share
+/// of the speed accuracy it reports: its held headings lack the heavy tail of
+/// receivers noisier than they say (validation standing cars: 68th percentile 1.9°
+/// against 5.8°).
+pub const CLEAN_NOISE_RATIO: f32 = 0.5;
+
+/// Whether the receiver behind `noise` (measured, m/s) and `acc` (reported sAcc, m/s,
+/// NaN when absent) is clean; never without an sAcc.
+pub fn clean(noise: f32, acc: f32) -> bool {
+    acc.is_finite() && noise < CLEAN_NOISE_RATIO * acc
+}
+
 impl SigmaMaps {
-    /// The map of a class (`car`) and state (`moving`).
-    pub fn map(&self, car: bool, moving: bool) -> &SigmaMap {
+    /// The map of a class (`car`), state (`moving`) and receiver ([`clean`]).
+    pub fn map(&self, car: bool, moving: bool, clean: bool) -> &SigmaMap {
         match (car, moving) {
             (true, true) => &self.car,
             (false, true) => &self.platform,
+            (true, false) if clean && !self.car_still_clean.is_identity() => &self.car_still_clean,
             (true, false) => &self.car_still,
             (false, false) => &self.platform_still,
         }
     }
 
-    /// The map of a class and state, to fit.
-    pub fn map_mut(&mut self, car: bool, moving: bool) -> &mut SigmaMap {
+    /// The map of a class, state and receiver, to fit.
+    pub fn map_mut(&mut self, car: bool, moving: bool, clean: bool) -> &mut SigmaMap {
         match (car, moving) {
             (true, true) => &mut self.car,
             (false, true) => &mut self.platform,
+            (true, false) if clean => &mut self.car_still_clean,
             (true, false) => &mut self.car_still,
             (false, false) => &mut self.platform_still,
         }
     }
 
     /// The reported σ (degrees) for a raw σ in degrees.
-    pub fn apply(&self, car: bool, moving: bool, raw_deg: f32) -> f32 {
-        self.map(car, moving).apply(raw_deg)
+    pub fn apply(&self, car: bool, moving: bool, clean: bool, raw_deg: f32) -> f32 {
+        self.map(car, moving, clean).apply(raw_deg)
     }
 }
 

@@ -214,10 +214,11 @@ pub fn advance(
 /// state; the uniform σ while the step only holds (before the first motion, as `kf`
 /// answers).
 ///
-/// A standing car's σ is the filter's alone: its heading cannot change, so the σ of a
-/// held heading is the one it stopped with, growing with time (`q_still`), and the
-/// network's per-epoch correction (trained on noise it cannot see through) would only
-/// make it jitter. A misread direction is not added as a variance: it is a 180° jump,
+/// A standing car's heading cannot change, so the σ of a held heading is the one it
+/// stopped with, growing with time (`q_still`): the filter's, corrected by the
+/// network's `y2` of the last moving epoch (held in the state), not by each standing
+/// epoch's (trained on noise it cannot see through, it would only make σ jitter).
+/// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own. A misread direction is not added as a variance: it is a 180° jump,
 /// not a spread, and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior)
 /// swamped the filter's σ so that the map could no longer tell a good epoch from a
 /// poor one; the calibration map's tails cover misreads instead.
@@ -233,11 +234,15 @@ pub fn reported_sigma(
     }
     // Moved by this step: a glitch the gate ignored is not motion (a car stays standing).
     let moved = st.t_still == 0.0;
-    let y2 = if moved || !st.vehicle.car { y2 } else { 0.0 };
+    let y2 = if moved || !st.vehicle.car {
+        y2
+    } else {
+        st.held_y2
+    };
     let s = (log_sigma + y2)
         .clamp(crate::head::LOG_SIGMA_MIN, crate::head::LOG_SIGMA_MAX)
         .exp();
-    maps.apply(st.vehicle.car, moved, s.to_degrees())
+    maps.apply(st.vehicle.car, moved, st.held_clean, s.to_degrees())
 }
 
 /// The temporal head: the fully connected layers collapsed to `y = W·[f_t, …, f_{t−W+1}]
@@ -710,6 +715,11 @@ impl StreamPredictor {
         };
         head.apply(&h.ring, h.newest, h.filled, &mut self.y[..3]);
         let d = commit(&mut h.state, &pending.step, &self.y[..3], pending.dt);
+        if h.state.t_still == 0.0 {
+            // What a stop starting after this epoch holds.
+            h.state.held_y2 = self.y[2];
+            h.state.held_clean = crate::modes::clean(h.state.vehicle.noise, pending.epoch[3]);
+        }
         let std = reported_sigma(&pending.step, d.log_sigma, self.y[2], &h.state, sigma_map);
         self.finish(d.psi, std, pending.had_prior, pending.epoch)
     }

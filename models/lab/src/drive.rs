@@ -376,10 +376,16 @@ struct Receiver {
     /// Sideslip per lateral acceleration, °/(m/s²) (the velocity of the antenna turns
     /// away from the body in curves).
     slip_deg: f64,
+    /// Where the antenna sits, metres forward and right of the point the vehicle turns
+    /// about (a car's rear axle, a platform's wheel axis centre). Turning moves it
+    /// sideways by `ω × r`: a car's course leads its heading by `atan(L·κ)` in a curve
+    /// (the shared real drive: about 65° per 1/m of curvature, L ≈ 1.1 m, 8–10° in
+    /// junction turns), and a platform spinning in place shows a velocity.
+    lever_m: (f64, f64),
 }
 
 impl Receiver {
-    fn draw(p: &DriveParams, rng: &mut ChaCha8Rng) -> Self {
+    fn draw(p: &DriveParams, platform: Platform, rng: &mut ChaCha8Rng) -> Self {
         let kind = *[
             ReceiverKind::Ublox,
             ReceiverKind::Rtklib,
@@ -401,6 +407,12 @@ impl Receiver {
             sacc_factor: uniform(rng, 0.7, 1.5),
             boresight_deg: 0.4 * rng.sample::<f64, _>(StandardNormal),
             slip_deg: uniform(rng, -0.3, 0.3),
+            // Roof antennas sit 0–2.5 m ahead of a car's rear axle (further on a truck's
+            // cab); a robot's anywhere on its deck.
+            lever_m: match platform {
+                Platform::Car => (uniform(rng, 0.0, 2.5), uniform(rng, -0.3, 0.3)),
+                Platform::TurnInPlace => (uniform(rng, -0.25, 0.25), uniform(rng, -0.25, 0.25)),
+            },
         }
     }
 }
@@ -418,7 +430,7 @@ pub fn simulate_track(
         Platform::TurnInPlace => platform_plan(rng, secs),
     };
     let truth = kinematics(rng, &legs, steps);
-    let rx = Receiver::draw(p, rng);
+    let rx = Receiver::draw(p, platform, rng);
     let gaps = gap_mask(p, rng, steps);
     let bad = bad_sky_mask(p, rng, steps);
     let samples = observe(p, &rx, &truth, &gaps, &bad, rng);
@@ -495,6 +507,15 @@ impl Glitches {
     }
 }
 
+/// The antenna's velocity (north, east; m/s) from the vehicle turning at `yaw_rate`
+/// (rad/s, clockwise seen from above) about a point `lever` (metres forward, right)
+/// behind it, at heading `h_deg`: `ω × r`, sideways for a forward lever.
+fn lever_velocity(h_deg: f64, yaw_rate: f64, lever: (f64, f64)) -> (f64, f64) {
+    let (forward, right) = (-yaw_rate * lever.1, yaw_rate * lever.0);
+    let (s, c) = h_deg.to_radians().sin_cos();
+    (forward * c - right * s, forward * s + right * c)
+}
+
 /// The receiver's view of the true motion: lag, correlated + white noise, glitches,
 /// output style, rate and gaps.
 fn observe(
@@ -527,8 +548,9 @@ fn observe(
         h_prev = h;
         let slip = rx.boresight_deg + rx.slip_deg * v.abs() * yaw_rate;
         let (s, c) = (h + slip).to_radians().sin_cos();
-        ln += alpha * (v * c - ln);
-        le += alpha * (v * s - le);
+        let (an, ae) = lever_velocity(h, yaw_rate, rx.lever_m);
+        ln += alpha * (v * c + an - ln);
+        le += alpha * (v * s + ae - le);
         for a in &mut ar {
             *a = phi * *a + innov * rng.sample::<f64, _>(StandardNormal);
         }
@@ -628,6 +650,49 @@ mod tests {
         let run = |seed| format!("{:?}", simulate(&small(), seed));
         assert_eq!(run(3), run(3));
         assert_ne!(run(3), run(4));
+    }
+
+    /// An antenna ahead of the rear axle leads the heading by `atan(L·κ)` in a curve
+    /// (right of it in a right turn), and backing up with the same steering swings it
+    /// the same way about a heading that now turns left: course = heading − 180° +
+    /// `atan(L·κ)`.
+    #[test]
+    fn an_antenna_ahead_of_the_axle_leads_in_curves() {
+        let p = DriveParams {
+            p_glitch: 0.0,
+            ..DriveParams::default()
+        };
+        let rx = Receiver {
+            kind: ReceiverKind::Ublox,
+            rate_hz: 10,
+            sigma: 0.0,
+            lag_s: 0.0,
+            corr_s: 1.0,
+            sacc_factor: 1.0,
+            boresight_deg: 0.0,
+            slip_deg: 0.0,
+            lever_m: (1.2, 0.0),
+        };
+        for (speed, lead) in [
+            (5.0, (1.2f64 / 10.0).atan().to_degrees()),
+            (-2.0, (1.2f64 / 10.0).atan().to_degrees() - 180.0),
+        ] {
+            // A right turn of radius 10 m: heading grows by speed/10 rad/s.
+            let truth: Vec<(f64, f64)> = (0..50)
+                .map(|k| ((k as f64 * DT * speed / 10.0).to_degrees(), speed))
+                .collect();
+            let none = vec![false; truth.len()];
+            let mut rng = ChaCha8Rng::seed_from_u64(1);
+            let out = observe(&p, &rx, &truth, &none, &none, &mut rng);
+            for s in &out[1..] {
+                let course = s.v_east.atan2(s.v_north).to_degrees();
+                let d = (course - s.truth_heading_deg + 540.0).rem_euclid(360.0) - 180.0;
+                assert!(
+                    (d - lead as f32).abs() < 0.1,
+                    "speed {speed}: course - heading {d}, expected {lead}"
+                );
+            }
+        }
     }
 
     /// Cars stop, reverse with the velocity opposite the heading, and never turn in
