@@ -566,15 +566,22 @@ fn calibrated(params: ParamSet, mut meta: ModelMeta, tracks: &[LogTrack]) -> Mod
     let raw = Arc::new(Model::new(params.clone(), meta.clone()));
     let run = stream_errors(&raw, tracks);
     let mut maps = SigmaMaps::default();
+    // (car, moving, clean receiver, share within 2σ to reach, label). Only a standing
+    // car's map tells clean receivers apart.
     let classes = [
-        (true, true, false),
-        (false, true, false),
-        (true, false, false),
-        (true, false, true),
-        (false, false, false),
+        (true, true, false, TARGET_2SIGMA, "cars, moving"),
+        (false, true, false, TARGET_2SIGMA, "others, moving"),
+        (true, false, false, TARGET_2SIGMA, "cars, standing"),
+        (
+            true,
+            false,
+            true,
+            TARGET_2SIGMA_CLEAN,
+            "cars, standing, clean receiver",
+        ),
+        (false, false, false, TARGET_2SIGMA, "others, standing"),
     ];
-    for (car, moving, clean) in classes {
-        // Only a standing car's map tells clean receivers apart.
+    for (car, moving, clean, target, label) in classes {
         let split = car && !moving;
         let (mut e, mut s) = (Vec::new(), Vec::new());
         let of_class = |i: &usize| {
@@ -584,18 +591,10 @@ fn calibrated(params: ParamSet, mut meta: ModelMeta, tracks: &[LogTrack]) -> Mod
             e.push(run.err[i]);
             s.push(run.sigma[i]);
         }
-        let target = if split && clean { 0.90 } else { TARGET_2SIGMA };
-        let map = fit_sigma_map_to(&e, &s, target);
+        let map = fit_sigma_map(&e, &s, target);
         let (c1, c2) = coverage(&map, &e, &s);
         eprintln!(
-            "σ map ({}, {}{}): within 1σ {:.1}%, 2σ {:.1}% of {} epochs",
-            if car { "cars" } else { "others" },
-            if moving { "moving" } else { "standing" },
-            if split && clean {
-                ", clean receiver"
-            } else {
-                ""
-            },
+            "σ map ({label}): within 1σ {:.1}%, 2σ {:.1}% of {} epochs",
             100.0 * c1,
             100.0 * c2,
             e.len()
@@ -631,20 +630,18 @@ pub fn coverage(map: &SigmaMap, errs: &[f32], sigma: &[f32]) -> (f64, f64) {
 const TARGET_1SIGMA: f64 = 0.68;
 /// Share within 2σ it must reach overall (the bar is 90%), with a margin.
 const TARGET_2SIGMA: f64 = 0.91;
+/// Share within 2σ for standing cars of a clean receiver: the bar itself, because
+/// that class's tail is a handful of stops and a margin there costs its 1σ share.
+const TARGET_2SIGMA_CLEAN: f64 = 0.90;
 
 /// A monotone σ map from (wrapped error, raw σ) pairs in radians: the raw σ split into
 /// [`SIGMA_KNOTS`](ghnet_models::modes::SIGMA_KNOTS) bins of equal count; in each, the
 /// σ that puts a share `a` of the errors within 1σ, raised if needed so that a share
 /// `b` falls within 2σ; made non-decreasing (pool adjacent violators). `(a, b)` are
-/// searched so that overall [`TARGET_2SIGMA`] of the errors fall within 2σ and the
+/// searched so that overall `target_2sigma` of the errors fall within 2σ and the
 /// share within 1σ is as near [`TARGET_1SIGMA`] as that allows: heavy tails (a
 /// direction misread costs 180°) make a single Gaussian scale miss one of the two.
-pub fn fit_sigma_map(errs: &[f32], sigma: &[f32]) -> SigmaMap {
-    fit_sigma_map_to(errs, sigma, TARGET_2SIGMA)
-}
-
-/// [`fit_sigma_map`] with another share within 2σ to reach.
-pub fn fit_sigma_map_to(errs: &[f32], sigma: &[f32], target_2sigma: f64) -> SigmaMap {
+pub fn fit_sigma_map(errs: &[f32], sigma: &[f32], target_2sigma: f64) -> SigmaMap {
     let mut best = (f64::INFINITY, SigmaMap::default());
     for ai in 0..=14 {
         let a = 0.50 + 0.02 * ai as f64;
