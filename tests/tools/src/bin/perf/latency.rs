@@ -42,41 +42,67 @@ fn is_answer_to(seq: u64, h: &ghnet_client::HeadingEstimate) -> bool {
     h.seq == seq && h.heading_status() != Some(HeadingStatus::Stale)
 }
 
-/// `warmup` then `n` measured round trips through `target` for `source`.
-pub fn measure(
-    target: &Target,
-    session: &Session,
-    output: Output,
-    source: &str,
-    first_seq: u64,
-    warmup: u64,
-    n: u64,
-) -> anyhow::Result<LatencyRun> {
-    let ipc = target.ipc().clone();
-    let gnss = VelocityPublisher::new(&ipc, source)?;
-    let (times, lost) = match output {
-        Output::Iceoryx2 => {
-            let headings = HeadingSubscriber::new(&ipc, source)?;
-            target.wait_until("iceoryx2 connection", Duration::from_secs(30), || {
-                gnss.subscriber_count() > 0 && headings.publisher_count() > 0
-            })?;
-            round_trips(target, &gnss, first_seq, warmup, n, |seq| loop {
-                match headings.recv_timeout(ANSWER_TIMEOUT)? {
-                    Some(h) if is_answer_to(seq, &h) => return Ok(true),
-                    Some(_) => continue,
-                    None => return Ok(false),
+/// Round trips per block. The passes of echo and ghnetd alternate in blocks of this
+/// many (echo first, then ghnetd first, and so on), so a slow minute of the machine
+/// falls on both alike instead of on whichever pass ran then.
+const BLOCK: u64 = 5_000;
+
+/// Unmeasured round trips at the start of every block after the first (the first
+/// has `--warmup-samples`): the other process just had the caches and the cores.
+const BLOCK_WARMUP: u64 = 200;
+
+/// Where a probe reads its answers.
+enum Headings {
+    Iceoryx2(Box<HeadingSubscriber>),
+    Zenoh(ZenohHeadingSubscriber),
+}
+
+/// One side of the comparison: a publisher into one target and a subscriber of its
+/// answers on one output, connected, with the next sequence number to send.
+struct Probe<'t> {
+    target: &'t Target,
+    gnss: VelocityPublisher,
+    headings: Headings,
+    seq: u64,
+    times: Vec<u64>,
+    lost: u64,
+}
+
+impl<'t> Probe<'t> {
+    /// Opens the ports for `source` and waits until answers can flow.
+    fn open(
+        target: &'t Target,
+        session: &Session,
+        output: Output,
+        source: &str,
+    ) -> anyhow::Result<Self> {
+        let ipc = target.ipc().clone();
+        let gnss = VelocityPublisher::new(&ipc, source)?;
+        let headings = match output {
+            Output::Iceoryx2 => Headings::Iceoryx2(Box::new(HeadingSubscriber::new(&ipc, source)?)),
+            Output::Zenoh => Headings::Zenoh(
+                ZenohHeadingSubscriber::new(session, &ipc, source)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?,
+            ),
+        };
+        let mut probe = Self {
+            target,
+            gnss,
+            headings,
+            seq: 0,
+            times: Vec::new(),
+            lost: 0,
+        };
+        target.wait_until("iceoryx2 connection", Duration::from_secs(30), || {
+            probe.gnss.subscriber_count() > 0
+                && match &probe.headings {
+                    Headings::Iceoryx2(h) => h.publisher_count() > 0,
+                    Headings::Zenoh(_) => true,
                 }
-            })?
-        }
-        Output::Zenoh => {
-            let headings = ZenohHeadingSubscriber::new(session, &ipc, source)
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
-            target.wait_until("iceoryx2 connection", Duration::from_secs(30), || {
-                gnss.subscriber_count() > 0
-            })?;
+        })?;
+        if let Headings::Zenoh(h) = &probe.headings {
             // The subscriber's declaration travels to the target asynchronously: send
             // until one answer comes back over Zenoh, then drain the rest.
-            let mut seq = first_seq;
             let t0 = Instant::now();
             loop {
                 target.check_running()?;
@@ -85,63 +111,103 @@ pub fn measure(
                     "{}: no heading over Zenoh within 30 s",
                     target.kind.label()
                 );
-                gnss.send(moving_sample(seq))?;
-                seq += 1;
-                if let Ok(Some(_)) = headings.recv_timeout(Duration::from_millis(20)) {
+                probe.gnss.send(moving_sample(probe.seq))?;
+                probe.seq += 1;
+                if let Ok(Some(_)) = h.recv_timeout(Duration::from_millis(20)) {
                     break;
                 }
             }
-            while let Ok(Some(_)) = headings.recv_timeout(Duration::from_millis(200)) {}
-            round_trips(target, &gnss, seq, warmup, n, |seq| loop {
-                match headings.recv_timeout(ANSWER_TIMEOUT) {
-                    Ok(Some(h)) if is_answer_to(seq, &h) => return Ok(true),
-                    Ok(Some(_)) | Err(_) => continue,
-                    Ok(None) => return Ok(false),
-                }
-            })?
+            while let Ok(Some(_)) = h.recv_timeout(Duration::from_millis(200)) {}
         }
-    };
-    let percentiles = Percentiles::of(times)
-        .ok_or_else(|| anyhow::anyhow!("{}: no answer at all", target.kind.label()))?;
-    Ok(LatencyRun { percentiles, lost })
-}
+        Ok(probe)
+    }
 
-/// `warmup` then `n` round trips from sequence number `first`: send one sample,
-/// `answer(seq)` waits for its answer (`false`: none within [`ANSWER_TIMEOUT`]).
-/// Returns the measured round trips in ns and how many were lost.
-fn round_trips(
-    target: &Target,
-    gnss: &VelocityPublisher,
-    first: u64,
-    warmup: u64,
-    n: u64,
-    mut answer: impl FnMut(u64) -> anyhow::Result<bool>,
-) -> anyhow::Result<(Vec<u64>, u64)> {
-    let mut times = Vec::with_capacity(n as usize);
-    let mut lost = 0;
-    for i in 0..warmup + n {
-        let seq = first + i;
-        let sample = moving_sample(seq);
-        let t0 = Instant::now();
-        gnss.send(sample)?;
-        let got = answer(seq)?;
-        let dt = t0.elapsed();
-        if i >= warmup {
-            if got {
-                times.push(dt.as_nanos() as u64);
-            } else {
-                lost += 1;
+    /// Waits for the answer to `seq`; `false` if none came within [`ANSWER_TIMEOUT`].
+    fn answer(&self, seq: u64) -> anyhow::Result<bool> {
+        loop {
+            let got = match &self.headings {
+                Headings::Iceoryx2(h) => h.recv_timeout(ANSWER_TIMEOUT)?,
+                // A payload that is not a heading is not the answer: wait on.
+                Headings::Zenoh(h) => match h.recv_timeout(ANSWER_TIMEOUT) {
+                    Ok(got) => got,
+                    Err(_) => continue,
+                },
+            };
+            match got {
+                Some(h) if is_answer_to(seq, &h) => return Ok(true),
+                Some(_) => continue,
+                None => return Ok(false),
             }
         }
-        if !got {
-            target.check_running()?;
-        }
     }
-    Ok((times, lost))
+
+    /// `warmup` then `n` round trips: send one sample, wait for its answer. Keeps the
+    /// measured ones (ns) and counts the lost ones.
+    fn round_trips(&mut self, warmup: u64, n: u64) -> anyhow::Result<()> {
+        for i in 0..warmup + n {
+            let seq = self.seq;
+            self.seq += 1;
+            let t0 = Instant::now();
+            self.gnss.send(moving_sample(seq))?;
+            let got = self.answer(seq)?;
+            let dt = t0.elapsed();
+            if i >= warmup {
+                if got {
+                    self.times.push(dt.as_nanos() as u64);
+                } else {
+                    self.lost += 1;
+                }
+            }
+            if !got {
+                self.target.check_running()?;
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> anyhow::Result<LatencyRun> {
+        let label = self.target.kind.label();
+        let percentiles = Percentiles::of(self.times)
+            .ok_or_else(|| anyhow::anyhow!("{label}: no answer at all"))?;
+        Ok(LatencyRun {
+            percentiles,
+            lost: self.lost,
+        })
+    }
 }
 
-/// Phase 2: latency, four passes (raw echo and ghnetd, each with the iceoryx2 and
-/// the Zenoh output), one sample in flight.
+/// `n` measured round trips per target on `output`, the targets taking turns in
+/// blocks of [`BLOCK`] (the order reversing every block).
+fn interleaved(
+    targets: &[&Target],
+    session: &Session,
+    output: Output,
+    warmup: u64,
+    n: u64,
+) -> anyhow::Result<Vec<LatencyRun>> {
+    let mut probes = targets
+        .iter()
+        .map(|t| Probe::open(t, session, output, "lat0"))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let (mut done, mut block) = (0, 0);
+    while done < n {
+        let len = BLOCK.min(n - done);
+        let warm = if block == 0 { warmup } else { BLOCK_WARMUP };
+        let mut order: Vec<usize> = (0..probes.len()).collect();
+        if block % 2 == 1 {
+            order.reverse();
+        }
+        for k in order {
+            probes[k].round_trips(warm, len)?;
+        }
+        done += len;
+        block += 1;
+    }
+    probes.into_iter().map(Probe::finish).collect()
+}
+
+/// Phase 2: latency, one sample in flight: the raw echo and ghnetd running side by
+/// side, for each output their round trips interleaved block by block.
 pub fn rows(
     args: &Args,
     env: &Env,
@@ -149,50 +215,32 @@ pub fn rows(
     endpoint: &str,
     inference: &Inference,
 ) -> anyhow::Result<Vec<Row>> {
-    let runs = measure_all(args, env, session, endpoint)?;
-    let of = |k: Kind, o: Output| {
-        let found = runs.iter().find(|((kk, oo), _)| *kk == k && *oo == o);
-        &found.expect("measured").1
-    };
-    let mut rows = Vec::new();
-    for (output, name) in [(Output::Iceoryx2, "iceoryx2"), (Output::Zenoh, "Zenoh")] {
-        let (raw, d) = (of(Kind::Echo, output), of(Kind::Ghnetd, output));
-        rows.extend(output_rows(args, name, inference, raw, d));
-    }
-    Ok(rows)
-}
-
-/// The four passes, each against a fresh target.
-fn measure_all(
-    args: &Args,
-    env: &Env,
-    session: &Session,
-    endpoint: &str,
-) -> anyhow::Result<Vec<((Kind, Output), LatencyRun)>> {
-    let mut runs = Vec::new();
-    let mut seq = 0;
-    for kind in [Kind::Echo, Kind::Ghnetd] {
+    let spawn = |kind| {
         let spec = Spec {
             kind,
             sources: vec!["lat0".into()],
             discovery: false,
             zenoh_connect: Some(endpoint.to_owned()),
         };
-        let t = Target::spawn(env, &spec)?;
-        for output in [Output::Iceoryx2, Output::Zenoh] {
-            let (warmup, n) = (args.warmup_samples, args.samples);
-            let r = measure(&t, session, output, "lat0", seq, warmup, n)?;
-            seq += warmup + n + 10_000;
+        Target::spawn(env, &spec)
+    };
+    let (echo, ghnetd) = (spawn(Kind::Echo)?, spawn(Kind::Ghnetd)?);
+    let mut rows = Vec::new();
+    for (output, name) in [(Output::Iceoryx2, "iceoryx2"), (Output::Zenoh, "Zenoh")] {
+        let (warmup, n) = (args.warmup_samples, args.samples);
+        let runs = interleaved(&[&echo, &ghnetd], session, output, warmup, n)?;
+        for (kind, r) in [Kind::Echo, Kind::Ghnetd].iter().zip(&runs) {
             let label = kind.label();
             eprintln!(
                 "latency {label} {output:?}: {} lost {}",
                 r.percentiles, r.lost
             );
-            runs.push(((kind, output), r));
         }
-        t.stop()?;
+        rows.extend(output_rows(args, name, inference, &runs[0], &runs[1]));
     }
-    Ok(runs)
+    echo.stop()?;
+    ghnetd.stop()?;
+    Ok(rows)
 }
 
 /// The rows of one output: p50 and p99 against their targets, p99.9 / max, losses.

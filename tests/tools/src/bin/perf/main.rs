@@ -67,10 +67,11 @@ enum Role {
 #[derive(clap::Args)]
 struct Args {
     /// Measured round trips per latency pass (four passes: iceoryx2 and Zenoh
-    /// output, raw echo and ghnetd).
+    /// output, raw echo and ghnetd; echo and ghnetd take turns in blocks of 5,000).
     #[arg(long, default_value_t = 100_000)]
     samples: u64,
-    /// Unmeasured round trips before each latency pass.
+    /// Unmeasured round trips before each latency pass (and 200 at the start of
+    /// every later block).
     #[arg(long, default_value_t = 2_000)]
     warmup_samples: u64,
     /// Seconds of the throughput measurement window (after 1 s of warm-up).
@@ -113,7 +114,8 @@ struct Args {
 /// The parts of the run, for `--only`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum Phase {
-    /// Four latency passes: raw echo and ghnetd, iceoryx2 and Zenoh output.
+    /// Four latency passes: raw echo and ghnetd, iceoryx2 and Zenoh output; echo
+    /// and ghnetd run side by side and take turns block by block.
     Latency,
     /// Throughput with all sources, and resident memory before and after.
     Throughput,
@@ -263,7 +265,7 @@ fn print_report(args: &Args, rows: &[Row], took: Duration) -> anyhow::Result<()>
         took.as_secs_f64()
     );
     println!(
-        "- latency: {} measured round trips per pass after {} warm-up, one in flight, event-driven on both sides; raw = `perf echo` (same WaitSet loop and outputs, no model)",
+        "- latency: {} measured round trips per pass after {} warm-up, one in flight, event-driven on both sides; echo and ghnetd running side by side, taking turns in blocks of 5000 (200 more warm-up each); raw = `perf echo` (same WaitSet loop and outputs, no model)",
         args.samples, args.warmup_samples
     );
     println!(
