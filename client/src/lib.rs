@@ -87,7 +87,9 @@ pub use names::{
     validate_source_name, IpcConfig, NameError, DEFAULT_PREFIX, EXPIRED_CONNECTION_BUFFER,
 };
 #[cfg(feature = "zenoh")]
-pub use remote::{peer_config, ZenohHeadingSubscriber, ZenohOpenError, DEFAULT_ZENOH_PORT};
+pub use remote::{
+    peer_config, ZenohHeadingSubscriber, ZenohOpenError, DEFAULT_ZENOH_PORT, ZENOH_TX_QUEUE,
+};
 pub use settings::{Message, ServiceSettings, SERVICE_SETTINGS};
 pub use signals::termination_requested;
 pub use waitset::{attach_listeners, wait_for_listeners};

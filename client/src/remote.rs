@@ -36,6 +36,25 @@ pub const DEFAULT_ZENOH_PORT: u16 = 7447;
 /// session waits for the reader (about 10 s at 100 Hz).
 pub const ZENOH_SUBSCRIBER_BUFFER: usize = 1024;
 
+/// Zenoh's transmit queue for every session that sends headings onward under load:
+/// ghnetd's own (its default without a Zenoh config file) and a fleet's routers. 16
+/// batches for data and up to 50 ms for one to free before a message is dropped, where
+/// Zenoh's defaults are 2 batches and 1 ms. JSON5 values by config path, for
+/// `Config::insert_json5` or a config file.
+///
+/// Why: headings are published with drop congestion control (the daemon's loop must
+/// never stall), and every session on the way applies its *own* queue to them: a
+/// router with Zenoh's defaults, on a loaded host, drops part of any burst it
+/// forwards. The cost is bounded: a congested link makes a sender wait at most
+/// 50 ms once, then drops without waiting (daemon/README.md, "Zenoh transmit queue").
+pub const ZENOH_TX_QUEUE: [(&str, &str); 2] = [
+    ("transport/link/tx/queue/size/data", "16"),
+    (
+        "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
+        "50000",
+    ),
+];
+
 /// A peer-mode Zenoh config that talks to exactly the given endpoints: listens on
 /// `listen`, connects to `connect`, multicast scouting and gossip off.
 ///

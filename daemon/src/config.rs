@@ -328,13 +328,7 @@ impl Default for ZenohSection {
 /// by config path; a config file replaces them): 16 batches, and up to 50 ms for one
 /// to free before a heading is dropped. Why: daemon/README.md, section "Zenoh
 /// transmit queue".
-pub const ZENOH_TX_DEFAULTS: [(&str, &str); 2] = [
-    ("transport/link/tx/queue/size/data", "16"),
-    (
-        "transport/link/tx/queue/congestion_control/drop/wait_before_drop",
-        "50000",
-    ),
-];
+pub const ZENOH_TX_DEFAULTS: [(&str, &str); 2] = ghnet_client::ZENOH_TX_QUEUE;
 
 impl ZenohSection {
     fn validate(&self) -> anyhow::Result<()> {

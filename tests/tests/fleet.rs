@@ -209,11 +209,16 @@ fn a_consumer_on_the_router_sees_the_whole_fleet_and_survives_a_router_restart()
             .iter()
             .all(|v| s.get(*v).and_then(Received::max) == Some(want))
     });
-    // A 2 ms burst may overflow a daemon's input on a loaded machine (its gaps
-    // counter), so this test counts; the one in network namespaces checks every seq.
+    // Every heading of the burst, once: the router forwards with ghnet's transmit
+    // queue (`router_config`); with Zenoh's default one (1 ms before a drop) a loaded
+    // host lost some.
     for v in VEHICLES {
         let s = seen.lock().unwrap();
-        assert!(s[v].seqs.len() >= 50, "{v}: {} headings", s[v].seqs.len());
+        let missing: Vec<u64> = burst.clone().filter(|q| !s[v].seqs.contains(q)).collect();
+        assert!(
+            missing.is_empty(),
+            "{v}: burst headings missing: {missing:?}"
+        );
         assert_eq!(s[v].duplicates, 0, "{v}");
     }
 

@@ -168,11 +168,15 @@ pub fn model_answers(session: &zenoh::Session, ipc: &IpcConfig) -> bool {
 }
 
 /// The Zenoh config of a router listening on `endpoints`: ghnet's peer config (scouting
-/// off) in router mode, as `zenohd` runs it. One definition for the fleet tests' router,
-/// whether it runs in the test or as the `ghnet-test-router` process.
+/// off) in router mode, as `zenohd` runs it, with the transmit queue a router of
+/// headings needs ([`ghnet_client::ZENOH_TX_QUEUE`]). One definition for the fleet
+/// tests' router, whether it runs in the test or as the `ghnet-test-router` process.
 pub fn router_config(endpoints: &[String]) -> zenoh::Config {
     let mut c = ghnet_client::peer_config(endpoints, &[]).expect("zenoh config");
     c.insert_json5("mode", "\"router\"").expect("router mode");
+    for (key, value) in ghnet_client::ZENOH_TX_QUEUE {
+        c.insert_json5(key, value).expect("transmit queue");
+    }
     c
 }
 
