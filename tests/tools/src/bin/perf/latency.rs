@@ -89,7 +89,12 @@ impl<'t> Probe<'t> {
             target,
             gnss,
             headings,
-            seq: 0,
+            // The Zenoh pass goes on counting where the iceoryx2 pass (same target,
+            // same source) left off, so the daemon sees no duplicate.
+            seq: match output {
+                Output::Iceoryx2 => 0,
+                Output::Zenoh => 1 << 32,
+            },
             times: Vec::new(),
             lost: 0,
         };
