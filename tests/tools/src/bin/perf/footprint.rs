@@ -11,7 +11,7 @@ use ghnet_client::VelocityPublisher;
 use anyhow::Context;
 use ghnet_tools::Percentiles;
 
-use crate::target::{cpu_time, Env, Kind, Spec, Target};
+use crate::target::{cpu_time_ns, Env, Kind, Spec, Target};
 use crate::{ms, row, Args, Row};
 
 /// CPU share of one core each target used over `window` while `publishers` (one per
@@ -30,7 +30,7 @@ fn idle_cpu(
     std::thread::sleep(settle);
     let before = targets
         .iter()
-        .map(|t| cpu_time(t.pid()))
+        .map(|t| cpu_time_ns(t.pid()))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let t0 = Instant::now();
     std::thread::sleep(window);
@@ -38,7 +38,9 @@ fn idle_cpu(
     let mut shares = Vec::new();
     for (t, b) in targets.iter().zip(before) {
         t.check_running()?;
-        shares.push((cpu_time(t.pid())? - b).as_secs_f64() / elapsed);
+        // saturating: a thread that exited in the window took its time along.
+        let used = cpu_time_ns(t.pid())?.saturating_sub(b);
+        shares.push(used.as_secs_f64() / elapsed);
     }
     Ok(shares)
 }
