@@ -220,9 +220,10 @@ pub fn advance(
 /// epoch's (trained on noise it cannot see through, it would only make σ jitter).
 /// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
 ///
-/// A misread direction is not added as a variance: it is a 180° jump, not a spread, and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior)
-/// swamped the filter's σ so that the map could no longer tell a good epoch from a
-/// poor one; the calibration map's tails cover misreads instead.
+/// A misread direction is not added as a variance: it is a 180° jump, not a spread,
+/// and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior) swamped the
+/// filter's σ so that the map could no longer tell a good epoch from a poor one; the
+/// calibration map's tails cover misreads instead.
 pub fn reported_sigma(
     step: &Step,
     log_sigma: f32,

@@ -233,9 +233,10 @@ pub fn rows(
     let mut rows = Vec::new();
     for (output, name) in [(Output::Iceoryx2, "iceoryx2"), (Output::Zenoh, "Zenoh")] {
         let (warmup, n) = (args.warmup_samples, args.samples);
-        let runs = interleaved(&[&echo, &ghnetd], session, output, warmup, n)?;
-        for (kind, r) in [Kind::Echo, Kind::Ghnetd].iter().zip(&runs) {
-            let label = kind.label();
+        let targets = [&echo, &ghnetd];
+        let runs = interleaved(&targets, session, output, warmup, n)?;
+        for (t, r) in targets.iter().zip(&runs) {
+            let label = t.kind.label();
             eprintln!(
                 "latency {label} {output:?}: {} lost {}",
                 r.percentiles, r.lost
