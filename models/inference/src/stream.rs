@@ -219,6 +219,7 @@ pub fn advance(
 /// network's `y2` of the last moving epoch (held in the state), not by each standing
 /// epoch's (trained on noise it cannot see through, it would only make σ jitter).
 /// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
+/// A moving epoch's σ then gains the turn term ([`crate::modes::SigmaMaps::with_turn`]).
 ///
 /// A misread direction is not added as a variance: it is a 180° jump, not a spread,
 /// and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior) swamped the
@@ -244,7 +245,9 @@ pub fn reported_sigma(
     let s = (log_sigma + y2)
         .clamp(crate::head::LOG_SIGMA_MIN, crate::head::LOG_SIGMA_MAX)
         .exp();
-    maps.apply(st.vehicle.car, moved, st.held_clean, s.to_degrees())
+    let car = st.vehicle.car;
+    let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
+    maps.with_turn(car, moved, step.speed, mapped, st.yaw)
 }
 
 /// The temporal head: the fully connected layers collapsed to `y = W·[f_t, …, f_{t−W+1}]

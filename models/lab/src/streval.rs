@@ -33,6 +33,23 @@ pub const BANDS: [(f32, f32); 7] = [
     (10.0, f32::INFINITY),
 ];
 
+/// Turn-rate bands of the turn table, °/s (from the truth heading): `[lo, hi)`.
+pub const TURN_BANDS: [(f32, f32); 5] = [
+    (0.0, 0.5),
+    (0.5, 1.5),
+    (1.5, 4.0),
+    (4.0, 10.0),
+    (10.0, f32::INFINITY),
+];
+
+/// Speed (m/s) from which epochs enter the turn table: slower, the speed itself sets
+/// the error, and the speed table shows it.
+pub const TURN_MIN_SPEED: f32 = 2.0;
+
+/// Longest epoch interval (s) over which a truth heading change is read as a turn
+/// rate (longer ones are gaps).
+const TURN_MAX_DT: f64 = 1.5;
+
 /// Measured speed below which a log without true speed counts as stopped: receiver noise
 /// alone reads 0.05–0.2 m/s.
 pub const STOPPED_MEASURED: f32 = 0.2;
@@ -192,6 +209,10 @@ pub struct Table {
     pub names: Vec<String>,
     /// Bands, then "all", then (when known) "after first motion".
     pub rows: Vec<Row>,
+    /// Epochs at [`TURN_MIN_SPEED`] or faster per [`TURN_BANDS`] band of the truth's
+    /// turn rate: whether σ is honest in turns as well as on straights (a filter that
+    /// fuses the heading trusts it most where a car turns).
+    pub turn_rows: Vec<Row>,
     /// Whether bands use true speed (simulated) or measured speed (logs without it).
     pub true_speed: bool,
 }
@@ -321,19 +342,70 @@ pub fn table(
         title: title.into(),
         names: answers.iter().map(|a| a.name.clone()).collect(),
         rows,
+        turn_rows: turn_rows(tracks, answers, &truth, &speed),
         true_speed,
     }
 }
 
+/// Rows of the turn table: per [`TURN_BANDS`] band, the epochs at
+/// [`TURN_MIN_SPEED`] or faster whose truth turned at that rate since the track's
+/// previous epoch (at most [`TURN_MAX_DT`] earlier).
+fn turn_rows(tracks: &[LogTrack], answers: &[Answers], truth: &[f32], speed: &[f32]) -> Vec<Row> {
+    let mut rate = Vec::with_capacity(truth.len());
+    for t in tracks {
+        for i in 0..t.len() {
+            let dt = if i > 0 { t.t_s[i] - t.t_s[i - 1] } else { 0.0 };
+            rate.push(if dt > 0.0 && dt <= TURN_MAX_DT {
+                wrap_deg(t.truth_deg[i] - t.truth_deg[i - 1]).abs() / dt as f32
+            } else {
+                f32::NAN
+            });
+        }
+    }
+    TURN_BANDS
+        .iter()
+        .map(|&(lo, hi)| {
+            let idx: Vec<usize> = (0..truth.len())
+                .filter(|&i| speed[i] >= TURN_MIN_SPEED && rate[i] >= lo && rate[i] < hi)
+                .collect();
+            Row {
+                label: if hi.is_infinite() {
+                    format!("≥{lo}")
+                } else {
+                    format!("{lo}–{hi}")
+                },
+                count: idx.len(),
+                cells: answers.iter().map(|a| cell(a, truth, &idx)).collect(),
+            }
+        })
+        .collect()
+}
+
 /// The table as Markdown: MAE per estimator, the last estimator against atan2 and
-/// against the second-to-last (the Kalman filter, by convention), and its σ calibration.
+/// against the second-to-last (the Kalman filter, by convention), and its σ calibration;
+/// then the same columns per turn rate (see [`Table::turn_rows`]).
 pub fn to_markdown(t: &Table) -> String {
-    let last = t.names.len() - 1;
-    let kf = t.names.iter().position(|n| n.starts_with("kf"));
-    let mut s = format!(
-        "| {} speed [m/s] | N |",
+    let speed = format!(
+        "{} speed [m/s]",
         if t.true_speed { "True" } else { "Measured" }
     );
+    let mut s = rows_markdown(t, &speed, &t.rows);
+    if t.turn_rows.iter().any(|r| r.count > 0) {
+        s += "\n";
+        s += &rows_markdown(
+            t,
+            &format!("Turn rate [°/s], {TURN_MIN_SPEED} m/s and faster"),
+            &t.turn_rows,
+        );
+    }
+    s
+}
+
+/// One Markdown table of `rows` with the columns of `t`, first column `first`.
+fn rows_markdown(t: &Table, first: &str, rows: &[Row]) -> String {
+    let last = t.names.len() - 1;
+    let kf = t.names.iter().position(|n| n.starts_with("kf"));
+    let mut s = format!("| {first} | N |");
     for n in &t.names {
         s += &format!(" MAE {n} |");
     }
@@ -344,7 +416,7 @@ pub fn to_markdown(t: &Table) -> String {
     s += " ≤1σ [%] | ≤2σ [%] |\n|---|---:|";
     s += &"---:|".repeat(t.names.len() + 3 + kf.is_some() as usize);
     s += "\n";
-    for r in &t.rows {
+    for r in rows {
         s += &format!("| {} | {} |", r.label, r.count);
         for c in &r.cells {
             s += &format!(" {:.2} |", c.mae_deg);

@@ -32,7 +32,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use ghnet_models::head::{wrap_rad, Head};
-use ghnet_models::modes::{prepare, ModeParams, SigmaMap, SigmaMaps, Step, StepState};
+use ghnet_models::modes::{prepare, ModeParams, SigmaMap, SigmaMaps, Step, StepState, TURN_SPEED};
 use ghnet_models::params::{Arch, ParamSet};
 use ghnet_models::stream::{inputs, Epoch, Reset, StreamPredictor, INPUTS};
 use ghnet_models::weights::{ModelKind, ModelMeta};
@@ -71,6 +71,9 @@ pub struct TemporalConfig {
     pub modes: ModeParams,
     /// Seed of initialisation, tiling, dropout and perturbations.
     pub seed: u64,
+    /// The σ maps' turn term, s ([`SigmaMaps::yaw_s`]); absent in older recipes (0).
+    #[serde(default)]
+    pub yaw_sigma_s: f32,
 }
 
 impl Default for TemporalConfig {
@@ -89,9 +92,18 @@ impl Default for TemporalConfig {
             p_perturb: 0.002,
             modes: ModeParams::default(),
             seed: 1,
+            yaw_sigma_s: YAW_SIGMA_S,
         }
     }
 }
+
+/// The turn term's seconds ([`SigmaMaps::yaw_s`]). Chosen on 40 fresh simulated car
+/// tracks (seed 977, none of the recipe's): at 0.3 / 0.6 / 1.0 / 1.5 s their moving
+/// epochs' share within 1σ per turn band (<0.5, 0.5–1.5, 1.5–4, 4–10, ≥10 °/s) went
+/// from 76/63/45/24/26% without it to 71/62/53/34/64, 70/63/62/41/68, 69/66/63/38/67
+/// and 69/67/64/39/67: flat from 1 s, about the RMS of the simulator's receiver lags
+/// (0–1.5 s) plus the filter's own.
+const YAW_SIGMA_S: f32 = 1.0;
 
 /// What a recurrent run recorded, per epoch of every track, concatenated.
 #[derive(Debug, Clone, Default)]
@@ -211,6 +223,8 @@ pub struct Streamed {
     /// The receiver was clean ([`ghnet_models::modes::clean`]) when the vehicle last
     /// moved (what a standing car's σ map is chosen by).
     pub clean: Vec<bool>,
+    /// Measured speed, m/s (whether a moving epoch's σ has the turn term).
+    pub speed: Vec<f32>,
 }
 
 /// Whether the epoch between states `a` and `b` moved: the clock of time stopped
@@ -240,6 +254,7 @@ pub fn stream_errors(model: &Arc<Model>, tracks: &[LogTrack]) -> Streamed {
             out.sigma.push(p.std_deg.to_radians());
             out.car.push(h.state().vehicle.car);
             out.clean.push(h.state().held_clean);
+            out.speed.push(e.v_north.hypot(e.v_east));
         }
     }
     out
@@ -261,7 +276,10 @@ pub fn temporal_meta(name: &str, arch: Arch, cfg: &TemporalConfig, kf: &Model) -
         q_deg_per_sqrt_s,
         sigma_v_mps,
         modes: cfg.modes,
-        sigma_map: SigmaMaps::default(),
+        sigma_map: SigmaMaps {
+            yaw_s: cfg.yaw_sigma_s,
+            ..SigmaMaps::default()
+        },
     };
     ModelMeta::new(name, arch, Head::Filter, kind)
 }
@@ -563,6 +581,10 @@ pub fn train(
 
 /// The model with its σ maps fitted on its streamed errors over `tracks`.
 fn calibrated(params: ParamSet, mut meta: ModelMeta, tracks: &[LogTrack]) -> Model {
+    let yaw_s = match &mut meta.kind {
+        ModelKind::Temporal { sigma_map, .. } => std::mem::take(sigma_map).yaw_s,
+        _ => 0.0,
+    };
     let raw = Arc::new(Model::new(params.clone(), meta.clone()));
     let run = stream_errors(&raw, tracks);
     let mut maps = SigmaMaps::default();
@@ -583,28 +605,52 @@ fn calibrated(params: ParamSet, mut meta: ModelMeta, tracks: &[LogTrack]) -> Mod
     ];
     for (car, moving, clean, target, label) in classes {
         let split = car && !moving;
-        let (mut e, mut s) = (Vec::new(), Vec::new());
-        let of_class = |i: &usize| {
-            run.car[*i] == car && run.moving[*i] == moving && (!split || run.clean[*i] == clean)
+        let of_class = |i: usize| {
+            run.car[i] == car && run.moving[i] == moving && (!split || run.clean[i] == clean)
         };
-        for i in (0..run.err.len()).filter(of_class) {
-            e.push(run.err[i]);
-            s.push(run.sigma[i]);
-        }
-        let map = fit_sigma_map(&e, &s, target);
-        let (c1, c2) = coverage(&map, &e, &s);
-        eprintln!(
-            "σ map ({label}): within 1σ {:.1}%, 2σ {:.1}% of {} epochs",
-            100.0 * c1,
-            100.0 * c2,
-            e.len()
-        );
-        *maps.map_mut(car, moving, clean) = map;
+        *maps.map_mut(car, moving, clean) = fit_class(&run, of_class, target, label);
     }
+    if yaw_s > 0.0 {
+        // The turn map, on the class maps' σ with the turn term (identity turn map),
+        // over the epochs that get it.
+        maps.yaw_s = yaw_s;
+        let run = stream_errors(&Arc::new(with_maps(&params, &meta, maps)), tracks);
+        let of_class = |i: usize| run.car[i] && run.moving[i] && run.speed[i] >= TURN_SPEED;
+        maps.car_turn = fit_class(&run, of_class, TARGET_2SIGMA, "cars, moving, turn");
+    }
+    with_maps(&params, &meta, maps)
+}
+
+/// The model of `params` and `meta` with σ maps `maps`.
+fn with_maps(params: &ParamSet, meta: &ModelMeta, maps: SigmaMaps) -> Model {
+    let mut meta = meta.clone();
     if let ModelKind::Temporal { sigma_map, .. } = &mut meta.kind {
         *sigma_map = maps;
     }
-    Model::new(params, meta)
+    Model::new(params.clone(), meta)
+}
+
+/// The σ map fitted on the epochs of `run` that `of_class` selects, its coverage logged.
+fn fit_class(
+    run: &Streamed,
+    of_class: impl Fn(usize) -> bool,
+    target: f64,
+    label: &str,
+) -> SigmaMap {
+    let (mut e, mut s) = (Vec::new(), Vec::new());
+    for i in (0..run.err.len()).filter(|&i| of_class(i)) {
+        e.push(run.err[i]);
+        s.push(run.sigma[i]);
+    }
+    let map = fit_sigma_map(&e, &s, target);
+    let (c1, c2) = coverage(&map, &e, &s);
+    eprintln!(
+        "σ map ({label}): within 1σ {:.1}%, 2σ {:.1}% of {} epochs",
+        100.0 * c1,
+        100.0 * c2,
+        e.len()
+    );
+    map
 }
 
 /// Shares within 1σ and 2σ of `errs` under σ map `map` (errors and raw σ in radians;

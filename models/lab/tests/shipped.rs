@@ -164,4 +164,19 @@ fn temporal_model_reproduces_its_committed_numbers() {
         m.metrics["kf_mae_deg"].as_f64().unwrap(),
         "kf mae_deg",
     );
+    // σ is honest in turns as on straights: every turn band of the cars at speed with
+    // enough epochs keeps the 1σ share near a normal σ's and most of the tail within 2σ
+    // (without the turn term: 51% and 40% within 1σ at 1.5–4 and ≥ 10 °/s, 71% within
+    // 2σ at ≥ 10 °/s).
+    let k = all.names.len() - 1;
+    for r in all.turn_rows.iter().filter(|r| r.count >= 1000) {
+        let (s1, s2) = (r.cells[k].within_1sigma, r.cells[k].within_2sigma);
+        let (s1, s2) = (s1.unwrap(), s2.unwrap());
+        assert!(
+            (0.6..=0.8).contains(&s1),
+            "turn {} °/s: {s1} within 1σ",
+            r.label
+        );
+        assert!(s2 >= 0.85, "turn {} °/s: {s2} within 2σ", r.label);
+    }
 }
