@@ -252,6 +252,14 @@ impl StepState {
         vehicle: Vehicle::UNKNOWN,
     };
 
+    /// Whether the last epoch moved (its clock of time stopped is at zero): the one
+    /// definition that picks the moving σ maps, records what a stop will hold
+    /// (`held_y2`, `held_clean`) and sorts epochs when the maps are fitted. A glitch
+    /// leaves it as it was.
+    pub fn moving_now(&self) -> bool {
+        self.t_still == 0.0
+    }
+
     /// An empty history that keeps what it knew about the vehicle (after a fix gap).
     pub fn after_gap(&self) -> StepState {
         StepState {
@@ -635,7 +643,7 @@ fn advance_clocks(st: &mut StepState, step: &Step, dt: f32) {
     // A glitch changes nothing: a standing vehicle stays standing through one, a moving
     // one moving (at speed, the gate's `max_skips` rule applies, not a stand's).
     let moved = step.moving && !step.glitch;
-    st.t_still = if (step.glitch && st.t_still == 0.0) || moved {
+    st.t_still = if (step.glitch && st.moving_now()) || moved {
         0.0
     } else {
         st.t_still + dt

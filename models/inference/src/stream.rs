@@ -236,7 +236,7 @@ pub fn reported_sigma(
         return MAX_STD_DEG;
     }
     // Moved by this step: a glitch the gate ignored is not motion (a car stays standing).
-    let moved = st.t_still == 0.0;
+    let moved = st.moving_now();
     let y2 = if moved || !st.vehicle.car {
         y2
     } else {
@@ -720,7 +720,7 @@ impl StreamPredictor {
         };
         head.apply(&h.ring, h.newest, h.filled, &mut self.y[..3]);
         let d = commit(&mut h.state, &pending.step, &self.y[..3], pending.dt);
-        if h.state.t_still == 0.0 {
+        if h.state.moving_now() {
             // What a stop starting after this epoch holds.
             h.state.held_y2 = self.y[2];
             h.state.held_clean = crate::modes::clean(h.state.vehicle.noise, pending.epoch[3]);

@@ -227,10 +227,11 @@ pub struct Streamed {
     pub speed: Vec<f32>,
 }
 
-/// Whether the epoch between states `a` and `b` moved: the clock of time stopped
-/// restarted (a history's first epoch counts as standing).
+/// Whether the epoch between states `a` and `b` moved, as the model decides it
+/// ([`StepState::moving_now`]). A history's first epoch and those before its first
+/// motion count as standing: they answer the uniform σ, which no map fits.
 fn moved_now(a: &StepState, b: &StepState) -> bool {
-    b.t_still == 0.0 && a.has_prior && b.has_prior && b.moved
+    b.moving_now() && a.has_prior && b.has_prior && b.moved
 }
 
 /// Stream `model` over `tracks` (a fresh history per track).
