@@ -219,7 +219,7 @@ pub fn advance(
 /// network's `y2` of the last moving epoch (held in the state), not by each standing
 /// epoch's (trained on noise it cannot see through, it would only make σ jitter).
 /// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
-/// A moving epoch's σ then gains the turn term ([`crate::modes::SigmaMaps::with_turn`]).
+/// A car moving at speed then gains the turn term ([`crate::modes::SigmaMaps::with_turn`]).
 ///
 /// A misread direction is not added as a variance: it is a 180° jump, not a spread,
 /// and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior) swamped the

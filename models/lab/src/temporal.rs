@@ -98,11 +98,12 @@ impl Default for TemporalConfig {
 }
 
 /// The turn term's seconds ([`SigmaMaps::yaw_s`]). Chosen on 40 fresh simulated car
-/// tracks (seed 977, none of the recipe's): at 0.3 / 0.6 / 1.0 / 1.5 s their moving
-/// epochs' share within 1σ per turn band (<0.5, 0.5–1.5, 1.5–4, 4–10, ≥10 °/s) went
-/// from 76/63/45/24/26% without it to 71/62/53/34/64, 70/63/62/41/68, 69/66/63/38/67
-/// and 69/67/64/39/67: flat from 1 s, about the RMS of the simulator's receiver lags
-/// (0–1.5 s) plus the filter's own.
+/// tracks (seed 977, none of the recipe's), with the term then on every moving epoch:
+/// at 0.3 / 0.6 / 1.0 / 1.5 s their moving epochs' share within 1σ per turn band
+/// (<0.5, 0.5–1.5, 1.5–4, 4–10, ≥10 °/s) went from 76/63/45/24/26% without it to
+/// 71/62/53/34/64, 70/63/62/41/68, 69/66/63/38/67 and 69/67/64/39/67: flat from 1 s,
+/// about the RMS of the simulator's receiver lags (0–1.5 s) plus the filter's own. As
+/// shipped (cars at [`TURN_SPEED`] and faster): 70/67/64/34/63%.
 const YAW_SIGMA_S: f32 = 1.0;
 
 /// What a recurrent run recorded, per epoch of every track, concatenated.
