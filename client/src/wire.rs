@@ -161,8 +161,10 @@ pub enum HeadingStatus {
     /// The vehicle is stopped and the heading is the one it had when it stopped, kept
     /// from this source's history (temporal models only): a car does not turn while
     /// standing, so the last moving heading stays the best estimate. `heading_std_deg`
-    /// grows with the time stopped; use it with that σ. Clients built before this
-    /// status existed see an unknown value and treat it as not `Ok`.
+    /// grows with the time stopped; use it with that σ, once per stop: every `Held`
+    /// answer of a stop carries the same error, so a filter that fused each as new
+    /// would grow sure of it. Clients built before this status existed see an unknown
+    /// value and treat it as not `Ok`.
     Held = 5,
 }
 

@@ -249,7 +249,7 @@ pub enum Status {
     Invalid,
     /// Stopped, and the heading is the one held from the source's history (stateful
     /// models only); σ grows with the time stopped. Usable with its σ: a parked car
-    /// keeps pointing where it stopped.
+    /// keeps pointing where it stopped. One error for the whole stop: fuse it once.
     Held,
 }
 

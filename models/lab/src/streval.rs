@@ -215,7 +215,32 @@ pub struct Table {
     pub turn_rows: Vec<Row>,
     /// Whether bands use true speed (simulated) or measured speed (logs without it).
     pub true_speed: bool,
+    /// How the last estimator's errors carry from epoch to epoch (models with σ).
+    pub memory: Option<Memory>,
 }
+
+/// How a stateful model's errors carry over time, which a filter fusing its answers
+/// must know: the tables count every epoch as one, but a held stop repeats one error
+/// for its whole length, and a moving answer shares part of its error with the next.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Memory {
+    /// Pairs of `Ok` epochs [`MEMORY_LAG_S`] apart.
+    pub pairs: usize,
+    /// Correlation of the signed error over σ between the two epochs of a pair.
+    pub correlation: f64,
+    /// Stops answered `Held`: runs of held epochs within a track.
+    pub stops: usize,
+    /// Epochs in those stops.
+    pub held_epochs: usize,
+    /// Share of stops whose (one) error is within the σ of their first held epoch.
+    pub stops_within_1sigma: f64,
+    /// The same within 2σ.
+    pub stops_within_2sigma: f64,
+}
+
+/// Lag (s) at which [`Memory::correlation`] is measured: the rate an INS filter is
+/// usually fed at, and the shared real drive's epoch.
+pub const MEMORY_LAG_S: f64 = 1.0;
 
 impl Table {
     /// The "all" row's MAE of estimator `name`.
@@ -344,7 +369,69 @@ pub fn table(
         rows,
         turn_rows: turn_rows(tracks, answers, &truth, &speed),
         true_speed,
+        memory: answers.last().and_then(|a| memory(tracks, a, &truth)),
     }
+}
+
+/// [`Memory`] of `a` (concatenated over `tracks`); `None` without σ or status.
+fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
+    let std = a.std_deg.as_ref()?;
+    if a.status.len() != truth.len() {
+        return None;
+    }
+    let z = |i: usize| wrap_deg(a.heading_deg[i] - truth[i]) as f64 / std[i] as f64;
+    let ok = |i: usize| a.status[i] == Status::Ok;
+    let (mut pairs, mut start) = (Vec::new(), 0);
+    let mut stops = Vec::new();
+    for t in tracks {
+        // The epoch `MEMORY_LAG_S` later (within a tenth of a second), if any.
+        let mut j = 0;
+        for i in 0..t.len() {
+            while j < t.len() && t.t_s[j] < t.t_s[i] + MEMORY_LAG_S - 0.05 {
+                j += 1;
+            }
+            let later = j < t.len() && t.t_s[j] <= t.t_s[i] + MEMORY_LAG_S + 0.05;
+            if later && ok(start + i) && ok(start + j) {
+                pairs.push((z(start + i), z(start + j)));
+            }
+            let held = a.status[start + i] == Status::Held;
+            if held && (i == 0 || a.status[start + i - 1] != Status::Held) {
+                stops.push((z(start + i).abs(), 0usize));
+            }
+            if let (true, Some(s)) = (held, stops.last_mut()) {
+                s.1 += 1;
+            }
+        }
+        start += t.len();
+    }
+    let n = stops.len().max(1) as f64;
+    let share = |k: f64| stops.iter().filter(|s| s.0 <= k).count() as f64 / n;
+    Some(Memory {
+        pairs: pairs.len(),
+        correlation: correlation(&pairs),
+        stops: stops.len(),
+        held_epochs: stops.iter().map(|s| s.1).sum(),
+        stops_within_1sigma: share(1.0),
+        stops_within_2sigma: share(2.0),
+    })
+}
+
+/// Pearson correlation of the pairs (NaN for fewer than two or no spread).
+fn correlation(pairs: &[(f64, f64)]) -> f64 {
+    let n = pairs.len() as f64;
+    let (mx, my) = pairs
+        .iter()
+        .fold((0.0, 0.0), |(x, y), p| (x + p.0 / n, y + p.1 / n));
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for (x, y) in pairs {
+        sxy += (x - mx) * (y - my);
+        sxx += (x - mx) * (x - mx);
+        syy += (y - my) * (y - my);
+    }
+    if pairs.len() < 2 || sxx <= 0.0 || syy <= 0.0 {
+        return f64::NAN;
+    }
+    sxy / (sxx * syy).sqrt()
 }
 
 /// Rows of the turn table: per [`TURN_BANDS`] band, the epochs at
@@ -398,7 +485,33 @@ pub fn to_markdown(t: &Table) -> String {
             &t.turn_rows,
         );
     }
+    if let Some(m) = &t.memory {
+        s += &memory_markdown(t.names.last().map_or("", |n| n.as_str()), m);
+    }
     s
+}
+
+/// The [`Memory`] line under a table.
+fn memory_markdown(name: &str, m: &Memory) -> String {
+    let mut s = format!("\nError memory of {name}");
+    if m.pairs > 1 {
+        s += &format!(
+            ": error/σ of an `Ok` answer correlates {:.2} with the answer {MEMORY_LAG_S} s later \
+             ({} pairs)",
+            m.correlation, m.pairs
+        );
+    }
+    if m.stops > 0 {
+        s += &format!(
+            "; {} stops held ({} epochs), one error each: {:.1}% / {:.1}% of stops within \
+             1σ / 2σ",
+            m.stops,
+            m.held_epochs,
+            100.0 * m.stops_within_1sigma,
+            100.0 * m.stops_within_2sigma
+        );
+    }
+    s + ".\n"
 }
 
 /// One Markdown table of `rows` with the columns of `t`, first column `first`.
@@ -435,4 +548,51 @@ fn rows_markdown(t: &Table, first: &str, rows: &[Row]) -> String {
         );
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 1 Hz track of `n` epochs pointing north at 5 m/s (only time and truth matter).
+    fn track(n: usize) -> LogTrack {
+        LogTrack {
+            key: "t".into(),
+            platform: None,
+            t_s: (0..n).map(|i| i as f64).collect(),
+            v_north: vec![5.0; n],
+            v_east: vec![0.0; n],
+            speed_acc: vec![f32::NAN; n],
+            truth_deg: vec![0.0; n],
+            true_speed: vec![5.0; n],
+            receiver_course_deg: vec![f32::NAN; n],
+        }
+    }
+
+    /// A held stop counts once however long it is, runs split by a track boundary are
+    /// two stops, and `Ok` answers 1 s apart that err alike correlate fully.
+    #[test]
+    fn memory_counts_stops_once_and_correlates_successive_errors() {
+        use Status::{Held, Ok};
+        let tracks = [track(8), track(3)];
+        // σ 2°: the first stop (3 epochs, 1° off) is within 1σ; the held run across the
+        // track boundary (1 + 2 epochs, 5° off) is two stops, both outside 2σ.
+        let heading = [1.0, 2.0, 3.0, 1.0, 1.0, 1.0, 3.0, 5.0, 5.0, 5.0, 5.0];
+        let status = [Ok, Ok, Ok, Held, Held, Held, Ok, Held, Held, Held, Ok];
+        let a = Answers {
+            name: "m".into(),
+            heading_deg: heading.to_vec(),
+            std_deg: Some(vec![2.0; 11]),
+            status: status.to_vec(),
+        };
+        let m = memory(&tracks, &a, &[0.0; 11]).expect("σ and status");
+        assert_eq!((m.stops, m.held_epochs), (3, 6), "{m:?}");
+        assert!((m.stops_within_1sigma - 1.0 / 3.0).abs() < 1e-9, "{m:?}");
+        assert!((m.stops_within_2sigma - 1.0 / 3.0).abs() < 1e-9, "{m:?}");
+        // Ok pairs 1 s apart: (1°, 2°) and (2°, 3°): perfectly correlated.
+        assert_eq!(m.pairs, 2);
+        assert!((m.correlation - 1.0).abs() < 1e-9, "{m:?}");
+        let without = Answers { std_deg: None, ..a };
+        assert!(memory(&tracks, &without, &[0.0; 11]).is_none());
+    }
 }

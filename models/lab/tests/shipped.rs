@@ -179,4 +179,18 @@ fn temporal_model_reproduces_its_committed_numbers() {
         );
         assert!(s2 >= 0.85, "turn {} °/s: {s2} within 2σ", r.label);
     }
+    // Counted once per stop (a held stop repeats one error), the held σ is honest too,
+    // for cars and for platforms: the epoch shares could hide stops the σ misses behind
+    // long ones it covers.
+    for t in &tables {
+        let mem = t.memory.expect("the model has σ and status");
+        assert!(mem.stops >= 300, "{}: {} stops", t.title, mem.stops);
+        let (s1, s2) = (mem.stops_within_1sigma, mem.stops_within_2sigma);
+        assert!(
+            (0.6..=0.76).contains(&s1),
+            "{}: {s1} of stops within 1σ",
+            t.title
+        );
+        assert!(s2 >= 0.9, "{}: {s2} of stops within 2σ", t.title);
+    }
 }
