@@ -236,7 +236,21 @@ pub struct Memory {
     pub stops_within_1sigma: f64,
     /// The same within 2σ.
     pub stops_within_2sigma: f64,
+    /// Per drive (track) with at least [`MIN_DRIVE_EPOCHS`] epochs, the share within
+    /// 1σ: 10th, 50th and 90th percentile over drives, when there are
+    /// [`MIN_DRIVES`] or more. The tables pool every drive; one user has one receiver,
+    /// one antenna mounting and one route, so their share lands anywhere in this spread.
+    pub drives_within_1sigma: Option<[f64; 3]>,
+    /// The same within 2σ.
+    pub drives_within_2sigma: Option<[f64; 3]>,
+    /// Drives counted in the percentiles.
+    pub drives: usize,
 }
+
+/// Fewest epochs a drive needs to count in [`Memory::drives_within_1sigma`].
+pub const MIN_DRIVE_EPOCHS: usize = 100;
+/// Fewest drives for the per-drive percentiles.
+pub const MIN_DRIVES: usize = 10;
 
 /// Lag (s) at which [`Memory::correlation`] is measured: the rate an INS filter is
 /// usually fed at, and the shared real drive's epoch.
@@ -383,7 +397,13 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
     let ok = |i: usize| a.status[i] == Status::Ok;
     let (mut pairs, mut start) = (Vec::new(), 0);
     let mut stops = Vec::new();
+    let mut drives = Vec::new();
     for t in tracks {
+        if t.len() >= MIN_DRIVE_EPOCHS {
+            let r = start..start + t.len();
+            let within = |k: f64| r.clone().filter(|&i| z(i).abs() <= k).count() as f64;
+            drives.push((within(1.0) / t.len() as f64, within(2.0) / t.len() as f64));
+        }
         // The epoch `MEMORY_LAG_S` later (within a tenth of a second), if any.
         let mut j = 0;
         for i in 0..t.len() {
@@ -413,7 +433,20 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
         held_epochs: stops.iter().map(|s| s.1).sum(),
         stops_within_1sigma: share(1.0),
         stops_within_2sigma: share(2.0),
+        drives_within_1sigma: percentiles(drives.iter().map(|d| d.0).collect()),
+        drives_within_2sigma: percentiles(drives.iter().map(|d| d.1).collect()),
+        drives: drives.len(),
     })
+}
+
+/// 10th, 50th and 90th percentile of `v` (nearest rank); `None` under [`MIN_DRIVES`].
+fn percentiles(mut v: Vec<f64>) -> Option<[f64; 3]> {
+    if v.len() < MIN_DRIVES {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let at = |q: f64| v[((q * v.len() as f64) as usize).min(v.len() - 1)];
+    Some([at(0.1), at(0.5), at(0.9)])
 }
 
 /// Pearson correlation of the pairs (NaN for fewer than two or no spread).
@@ -511,6 +544,23 @@ fn memory_markdown(name: &str, m: &Memory) -> String {
             100.0 * m.stops_within_2sigma
         );
     }
+    if let (Some(a), Some(b)) = (m.drives_within_1sigma, m.drives_within_2sigma) {
+        let pct = |p: [f64; 3]| {
+            format!(
+                "{:.0} / {:.0} / {:.0}%",
+                100.0 * p[0],
+                100.0 * p[1],
+                100.0 * p[2]
+            )
+        };
+        s += &format!(
+            ".\n\nPer drive, {name} ({} drives, 10th / 50th / 90th percentile): {} within 1σ, {} \
+             within 2σ",
+            m.drives,
+            pct(a),
+            pct(b)
+        );
+    }
     s + ".\n"
 }
 
@@ -594,5 +644,40 @@ mod tests {
         assert!((m.correlation - 1.0).abs() < 1e-9, "{m:?}");
         let without = Answers { std_deg: None, ..a };
         assert!(memory(&tracks, &without, &[0.0; 11]).is_none());
+        assert_eq!(
+            (m.drives, m.drives_within_1sigma),
+            (0, None),
+            "short tracks"
+        );
+    }
+
+    /// Per drive: the 10th / 50th / 90th percentile of each drive's share within 1σ and
+    /// 2σ, over drives long enough to count.
+    #[test]
+    fn memory_spreads_coverage_per_drive() {
+        let tracks: Vec<LogTrack> = (0..11)
+            .map(|k| track(if k == 10 { 50 } else { 100 }))
+            .collect();
+        // Drive k errs 3° (σ 2°: outside 1σ, inside 2σ) on its first 10·k epochs; the
+        // eleventh is too short to count.
+        let heading: Vec<f32> = tracks
+            .iter()
+            .enumerate()
+            .flat_map(|(k, t)| (0..t.len()).map(move |i| if i < 10 * k { 3.0 } else { 1.0 }))
+            .collect();
+        let n = heading.len();
+        let a = Answers {
+            name: "m".into(),
+            heading_deg: heading,
+            std_deg: Some(vec![2.0; n]),
+            status: vec![Status::Ok; n],
+        };
+        let m = memory(&tracks, &a, &vec![0.0; n]).expect("σ and status");
+        assert_eq!(m.drives, 10);
+        let p = m.drives_within_1sigma.expect("ten drives");
+        for (got, want) in p.iter().zip([0.2, 0.6, 1.0]) {
+            assert!((got - want).abs() < 1e-9, "{p:?}");
+        }
+        assert_eq!(m.drives_within_2sigma, Some([1.0; 3]));
     }
 }

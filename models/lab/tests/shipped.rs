@@ -192,5 +192,15 @@ fn temporal_model_reproduces_its_committed_numbers() {
             t.title
         );
         assert!(s2 >= 0.9, "{}: {s2} of stops within 2σ", t.title);
+        // The median drive is calibrated too (its spread is reported, not bounded: one
+        // drive has one receiver, mounting and route).
+        let (d1, d2) = (mem.drives_within_1sigma, mem.drives_within_2sigma);
+        let (d1, d2) = (d1.expect("≥ 10 drives")[1], d2.expect("≥ 10 drives")[1]);
+        assert!(
+            (0.6..=0.76).contains(&d1),
+            "{}: median drive {d1} within 1σ",
+            t.title
+        );
+        assert!(d2 >= 0.9, "{}: median drive {d2} within 2σ", t.title);
     }
 }
