@@ -215,13 +215,15 @@ pub struct Table {
     pub turn_rows: Vec<Row>,
     /// Whether bands use true speed (simulated) or measured speed (logs without it).
     pub true_speed: bool,
-    /// How the last estimator's errors carry from epoch to epoch (models with σ).
+    /// How the last estimator's errors carry from epoch to epoch, and spread per drive
+    /// (models with σ and status).
     pub memory: Option<Memory>,
 }
 
 /// How a stateful model's errors carry over time, which a filter fusing its answers
 /// must know: the tables count every epoch as one, but a held stop repeats one error
 /// for its whole length, and a moving answer shares part of its error with the next.
+/// Also how widely one drive's σ coverage spreads around the pooled one.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct Memory {
     /// Pairs of `Ok` epochs [`MEMORY_LAG_S`] apart.
