@@ -398,13 +398,13 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
     let z = |i: usize| wrap_deg(a.heading_deg[i] - truth[i]) as f64 / std[i] as f64;
     let ok = |i: usize| a.status[i] == Status::Ok;
     let (mut pairs, mut start) = (Vec::new(), 0);
-    let mut stops = Vec::new();
+    // Each stop's first held epoch (its one error and σ), and the epochs held.
+    let (mut stops, mut held_epochs) = (Vec::new(), 0);
     let mut drives = Vec::new();
     for t in tracks {
         if t.len() >= MIN_DRIVE_EPOCHS {
-            let r = start..start + t.len();
-            let within = |k: f64| r.clone().filter(|&i| z(i).abs() <= k).count() as f64;
-            drives.push((within(1.0) / t.len() as f64, within(2.0) / t.len() as f64));
+            let idx: Vec<usize> = (start..start + t.len()).collect();
+            drives.push(cell(a, truth, &idx));
         }
         // The epoch `MEMORY_LAG_S` later (within a tenth of a second), if any.
         let mut j = 0;
@@ -416,27 +416,27 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
             if later && ok(start + i) && ok(start + j) {
                 pairs.push((z(start + i), z(start + j)));
             }
-            let held = a.status[start + i] == Status::Held;
-            if held && (i == 0 || a.status[start + i - 1] != Status::Held) {
-                stops.push((z(start + i).abs(), 0usize));
-            }
-            if let (true, Some(s)) = (held, stops.last_mut()) {
-                s.1 += 1;
+            if a.status[start + i] == Status::Held {
+                held_epochs += 1;
+                if i == 0 || a.status[start + i - 1] != Status::Held {
+                    stops.push(start + i);
+                }
             }
         }
         start += t.len();
     }
-    let n = stops.len().max(1) as f64;
-    let share = |k: f64| stops.iter().filter(|s| s.0 <= k).count() as f64 / n;
+    let per_stop = cell(a, truth, &stops);
+    let spread =
+        |share: fn(&Cell) -> Option<f64>| percentiles(drives.iter().filter_map(share).collect());
     Some(Memory {
         pairs: pairs.len(),
         correlation: correlation(&pairs),
         stops: stops.len(),
-        held_epochs: stops.iter().map(|s| s.1).sum(),
-        stops_within_1sigma: share(1.0),
-        stops_within_2sigma: share(2.0),
-        drives_within_1sigma: percentiles(drives.iter().map(|d| d.0).collect()),
-        drives_within_2sigma: percentiles(drives.iter().map(|d| d.1).collect()),
+        held_epochs,
+        stops_within_1sigma: per_stop.within_1sigma?,
+        stops_within_2sigma: per_stop.within_2sigma?,
+        drives_within_1sigma: spread(|c| c.within_1sigma),
+        drives_within_2sigma: spread(|c| c.within_2sigma),
         drives: drives.len(),
     })
 }
