@@ -27,9 +27,13 @@
 //! (car or platform, the receiver's noise), not its heading. Invalid epochs are answered
 //! `Invalid` and leave the history as it was.
 //!
-//! A stopped vehicle (speed under `max(stationary_speed, 3·sAcc)`) that has a heading
-//! from its history is answered [`Status::Held`] with that heading and a σ that grows
-//! with the time stopped; without one it is `Stationary`.
+//! A stopped vehicle that has a heading from its history is answered [`Status::Held`]
+//! with that heading and a σ that grows with the time stopped; without one it is
+//! `Stationary`. Stopped is the speed (under `max(stationary_speed, 3·sAcc)`) or, for
+//! the temporal model, its own decision that the epoch did not move (its course was
+//! not used, so the heading is the held one): a noisy receiver's speed at rest often
+//! passes `3·sAcc`, and those epochs were answered `Ok` with the held heading, which a
+//! filter would then fuse again and again as if each were news.
 
 use std::sync::Arc;
 
@@ -602,7 +606,7 @@ impl StreamPredictor {
                 return self.end(h, &pending);
             }
         };
-        self.finish(psi, std_deg, had_prior, [vn, ve, speed, acc])
+        self.finish(psi, std_deg, had_prior, false, [vn, ve, speed, acc])
     }
 
     /// Opens epoch `e` on `h` if it can be answered: `[v_north, v_east, speed, sAcc]`
@@ -726,7 +730,8 @@ impl StreamPredictor {
             h.state.held_clean = crate::modes::clean(h.state.vehicle.noise, pending.epoch[3]);
         }
         let std = reported_sigma(&pending.step, d.log_sigma, self.y[2], &h.state, sigma_map);
-        self.finish(d.psi, std, pending.had_prior, pending.epoch)
+        let standing = !h.state.moving_now();
+        self.finish(d.psi, std, pending.had_prior, standing, pending.epoch)
     }
 
     /// The filter step from outputs `self.y`: heading (radians) and reported σ
@@ -753,8 +758,17 @@ impl StreamPredictor {
     }
 
     /// Heading in [0, 360), σ, status: `Held` for a stopped vehicle with a heading from
-    /// earlier epochs (`had_prior`); `epoch` is `[v_north, v_east, speed, sAcc]`.
-    fn finish(&self, psi: f32, std: f32, had_prior: bool, epoch: [f32; 4]) -> Prediction {
+    /// earlier epochs (`had_prior`), stopped by its speed or, when the model says so,
+    /// `standing` (the epoch's course was not used); `epoch` is `[v_north, v_east,
+    /// speed, sAcc]`.
+    fn finish(
+        &self,
+        psi: f32,
+        std: f32,
+        had_prior: bool,
+        standing: bool,
+        epoch: [f32; 4],
+    ) -> Prediction {
         let [vn, ve, speed, acc] = epoch;
         let deg = psi.to_degrees().rem_euclid(360.0);
         let deg = if deg >= 360.0 { 0.0 } else { deg };
@@ -763,7 +777,7 @@ impl StreamPredictor {
         } else {
             self.policy.stationary_speed
         };
-        let status = if speed < held_speed {
+        let status = if speed < held_speed || (standing && had_prior) {
             if had_prior && std < 0.99 * MAX_STD_DEG {
                 Status::Held
             } else {
@@ -1078,6 +1092,50 @@ mod tests {
         }
         let p = (900..960).map(|i| sp.predict(&mut h, &ep(i, 8.0))).last();
         assert_eq!(p.expect("epochs").status, Status::Ok);
+    }
+
+    /// A stopped car whose receiver is noisier at rest than its sAcc says (σ 0.15 m/s
+    /// per axis against 0.05 reported: its speed passes `3·sAcc` on most epochs) is
+    /// answered `Held`, never `Ok`, once its first seconds at rest are over: the heading
+    /// those epochs carry is the held one (within a degree), and a filter told `Ok`
+    /// would fuse it again each time.
+    #[test]
+    fn a_noisy_receiver_at_rest_is_held_not_ok() {
+        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
+        let mut sp = StreamPredictor::new(model);
+        let mut h = sp.history();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut noise = move |sigma: f32| rng.random_range(-1.732 * sigma..1.732 * sigma);
+        let mut ep = |i: usize, speed: f32, sigma: f32| Epoch {
+            t_s: i as f64 * 0.2,
+            v_north: speed * 30f32.to_radians().cos() + noise(sigma),
+            v_east: speed * 30f32.to_radians().sin() + noise(sigma),
+            speed_acc: 0.05,
+        };
+        for i in 0..150 {
+            sp.predict(&mut h, &ep(i, 8.0, 0.05));
+        }
+        for i in 150..170 {
+            // Braking at 2 m/s².
+            sp.predict(&mut h, &ep(i, 8.0 - 0.4 * (i - 149) as f32, 0.05));
+        }
+        let (mut above, mut n, mut held) = (0, 0, None);
+        for i in 170..600 {
+            let p = sp.predict(&mut h, &ep(i, 0.0, 0.15));
+            if i < 200 {
+                continue; // the first seconds at rest: the noise can still look like motion
+            }
+            n += 1;
+            above += usize::from(p.speed >= 3.0 * 0.05);
+            assert_eq!(p.status, Status::Held, "{i} {p:?}");
+            let first = *held.get_or_insert(p.heading_deg);
+            assert!(
+                (p.heading_deg - first).abs() < 1.0,
+                "{i}: {p:?} after {first}"
+            );
+        }
+        // The speed rule alone would have answered most of them `Ok` or `LowSpeed`.
+        assert!(above > n / 2, "{above} of {n} above 3·sAcc");
     }
 
     /// A parked car under poor sky keeps its heading: its receiver's noise at rest is
