@@ -160,7 +160,9 @@ pub enum HeadingStatus {
     Stale = 4,
     /// The vehicle is stopped and the heading is the one it had when it stopped, kept
     /// from this source's history (temporal models only): a car does not turn while
-    /// standing, so the last moving heading stays the best estimate. `heading_std_deg`
+    /// standing, so the last moving heading stays the best estimate. Stopped is the
+    /// model's call (the epoch's course was not used), so a noisy receiver at rest is
+    /// `Held` even where its speed looks like motion. `heading_std_deg`
     /// grows with the time stopped; use it with that σ, once per stop: every `Held`
     /// answer of a stop carries the same error, so a filter that fused each as new
     /// would grow sure of it. Clients built before this status existed see an unknown

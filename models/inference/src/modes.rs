@@ -723,10 +723,12 @@ pub struct SigmaMaps {
     pub car: SigmaMap,
     /// Other vehicles, moving epochs.
     pub platform: SigmaMap,
-    /// Cars, standing epochs (of a receiver not known to be [`clean`]).
+    /// Cars, standing epochs (of a receiver not known to be [`clean`]). Fitted per
+    /// stop (each stop weighs one, however long), because a stop repeats one error and
+    /// a filter fuses it once; the share per epoch is held to the bars as well.
     pub car_still: SigmaMap,
-    /// Cars, standing epochs of a [`clean`] receiver; absent (identity) in older
-    /// files, which then use `car_still`.
+    /// Cars, standing epochs of a [`clean`] receiver, fitted as `car_still`; absent
+    /// (identity) in older files, which then use `car_still`.
     pub car_still_clean: SigmaMap,
     /// Other vehicles, standing epochs.
     pub platform_still: SigmaMap,
