@@ -740,6 +740,14 @@ pub struct SigmaMaps {
     /// trails the heading by ω·τ, τ unknown; a lever arm adds its own offset in a
     /// turn). 0 (older files) leaves σ as it was.
     pub yaw_s: f32,
+    /// A car's moving epochs map the filter's σ alone, without the network's
+    /// correction `y₂`.
+    /// The filter's σ follows the receiver's noise (σ_v/ŝ): on a fresh simulated set
+    /// at 2 m/s and faster its median grows 4.3× from the quietest quarter of drives to
+    /// the noisiest, where the errors' 68th percentile grows 3×; with `y₂`, trained on
+    /// all receivers pooled, it grew 1.7×, so σ was too wide for quiet receivers and
+    /// too narrow for noisy ones. False (older files) keeps `y₂`.
+    pub moving_without_y2: bool,
     /// Cars, moving at speed: the σ with its turn term to the reported σ (a turn's
     /// errors have heavier tails than a Gaussian term covers, so the sum is mapped
     /// again). Cars only: the simulated platforms turn in place below [`TURN_SPEED`],

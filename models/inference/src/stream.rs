@@ -216,7 +216,9 @@ pub fn advance(
 /// The reported σ (degrees) of a temporal step: the filter's `log σ` plus the
 /// network's correction `y2`, through the calibration map of the vehicle's class and
 /// state; the uniform σ while the step only holds (before the first motion, as `kf`
-/// answers).
+/// answers). A moving car's σ leaves `y2` out when the maps say so
+/// ([`crate::modes::SigmaMaps::moving_without_y2`]): the filter's σ follows the
+/// receiver's noise, which `y2` had averaged away.
 ///
 /// A standing car's heading cannot change, so the σ of a held heading is the one it
 /// stopped with, growing with time (`q_still`): the filter's, corrected by the
@@ -241,7 +243,9 @@ pub fn reported_sigma(
     }
     // Moved by this step: a glitch the gate ignored is not motion (a car stays standing).
     let moved = st.moving_now();
-    let y2 = if moved || !st.vehicle.car {
+    let y2 = if moved && st.vehicle.car && maps.moving_without_y2 {
+        0.0
+    } else if moved || !st.vehicle.car {
         y2
     } else {
         st.held_y2

@@ -283,6 +283,7 @@ pub fn temporal_meta(name: &str, arch: Arch, cfg: &TemporalConfig, kf: &Model) -
         modes: cfg.modes,
         sigma_map: SigmaMaps {
             yaw_s: cfg.yaw_sigma_s,
+            moving_without_y2: true,
             ..SigmaMaps::default()
         },
     };
@@ -586,13 +587,21 @@ pub fn train(
 
 /// The model with its σ maps fitted on its streamed errors over `tracks`.
 fn calibrated(params: ParamSet, mut meta: ModelMeta, tracks: &[LogTrack]) -> Model {
-    let yaw_s = match &mut meta.kind {
-        ModelKind::Temporal { sigma_map, .. } => std::mem::take(sigma_map).yaw_s,
-        _ => 0.0,
+    // The raw model: identity maps (its σ is what the maps read), the choice of σ kept.
+    let (yaw_s, moving_without_y2) = match &mut meta.kind {
+        ModelKind::Temporal { sigma_map, .. } => {
+            let given = std::mem::take(sigma_map);
+            sigma_map.moving_without_y2 = given.moving_without_y2;
+            (given.yaw_s, given.moving_without_y2)
+        }
+        _ => (0.0, false),
     };
     let raw = Arc::new(Model::new(params.clone(), meta.clone()));
     let run = stream_errors(&raw, tracks);
-    let mut maps = SigmaMaps::default();
+    let mut maps = SigmaMaps {
+        moving_without_y2,
+        ..SigmaMaps::default()
+    };
     // (car, moving, clean receiver, share within 2σ to reach, label). Only a standing
     // car's map tells clean receivers apart.
     let classes = [

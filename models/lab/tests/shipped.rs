@@ -204,3 +204,33 @@ fn temporal_model_reproduces_its_committed_numbers() {
         assert!(d2 >= 0.9, "{}: median drive {d2} within 2σ", t.title);
     }
 }
+
+/// The committed report of the shared real drive (`models/reports/car-nagoya.md`,
+/// written by `models/regenerate.sh` from `../shared/data/real/`, which this
+/// repository does not carry) meets the bars: MAE at most 0.9 × the tuned
+/// `kf`'s and 0.8 × atan2's, 60–76% of errors within 1σ, at least 90% within 2σ.
+#[test]
+fn committed_real_drive_report_meets_the_bars() {
+    let text = std::fs::read_to_string(format!(
+        "{}/../reports/car-nagoya.md",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    let row = text
+        .lines()
+        .find(|l| l.starts_with("| **all** |"))
+        .expect("the report's overall row");
+    let cells: Vec<f64> = row
+        .split('|')
+        .skip(2)
+        .filter_map(|c| c.trim().parse().ok())
+        .collect();
+    // N, atan2, kf, model, vs atan2 %, vs kf %, within 1σ %, within 2σ %.
+    let [n, atan2, kf, model, _, _, s1, s2] = cells[..] else {
+        panic!("unexpected overall row: {row}");
+    };
+    assert!(n > 1000.0, "{n} epochs");
+    assert!(model <= 0.9 * kf && model <= 0.8 * atan2, "{row}");
+    assert!((60.0..=76.0).contains(&s1), "{s1}% within 1σ");
+    assert!(s2 >= 90.0, "{s2}% within 2σ");
+}
