@@ -36,5 +36,5 @@ pub mod weights;
 
 pub use model::{Model, ModelError, Prediction, Predictor, Status, StatusPolicy, DEFAULT_MODEL};
 pub use params::Arch;
-pub use stream::{Epoch, History, Reset, ResetCounts, StreamBatch, StreamPredictor};
+pub use stream::{Epoch, History, Platform, Reset, ResetCounts, StreamBatch, StreamPredictor};
 pub use weights::ModelMeta;

@@ -196,6 +196,17 @@ impl Model {
         &self.meta
     }
 
+    /// This model with `platform` as its sources' default ([`crate::Platform`]): how a
+    /// log of a known platform is answered (`ghnet infer --platform`). Models without
+    /// the temporal filter do not use it and come back unchanged.
+    pub fn with_platform(&self, platform: crate::Platform) -> Model {
+        let mut meta = self.meta.clone();
+        if let ModelKind::Temporal { modes, .. } = &mut meta.kind {
+            modes.platform = platform;
+        }
+        Model::new(self.params.clone(), meta)
+    }
+
     /// The unfolded weights (what `ghnet export` writes).
     pub fn params(&self) -> &ParamSet {
         &self.params

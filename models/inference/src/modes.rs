@@ -60,6 +60,80 @@ pub const TURN_SPEED: f32 = 2.0;
 /// Fewest epochs above `fast_speed` that make a vehicle a car.
 pub const FAST_EPOCHS: u16 = 5;
 
+/// Speed (m/s) from which an epoch is plain motion for the release rule
+/// ([`StepState::t_motion`]), whatever the noise estimate says: a receiver at rest does
+/// not read this fast for a second with a steady course, unless its sAcc says it may
+/// (then `3·sAcc` is the bar).
+pub const RELEASE_SPEED: f32 = 0.8;
+
+/// Seconds of plain motion on a steady course that end any stand ([`StepState::t_motion`]):
+/// once a vehicle has shown this much consistent motion, its answer follows the course,
+/// whatever the stand's rules (a car's axis, a glitch burst's confirmation, a noise
+/// estimate inflated by slow driving) would still say. Longer than the glitch bursts of
+/// poor sky at 5 Hz and faster, short enough that no answer carries a stop's heading
+/// for more than about a second of driving.
+pub const RELEASE_S: f32 = 0.8;
+
+/// Largest receiver noise σ (m/s) the release rule's bar takes from the running
+/// estimate (the bar is 4σ): beyond it the estimate is more likely slow driving read
+/// as noise than a receiver that noisy at rest.
+pub const RELEASE_NOISE_CAP: f32 = 0.3;
+
+/// Fewest epochs of plain motion that end a stand (with [`RELEASE_S`]): at 1 and 2 Hz
+/// a burst of two equal glitches under poor sky spans a second, and releasing a parked
+/// car on it turned its held heading.
+pub const RELEASE_EPOCHS: u16 = 3;
+
+/// Largest course change (°) between successive epochs of plain motion: a steadier
+/// course than this is motion, not noise or a glitch burst's scatter.
+pub const RELEASE_COURSE_DEG: f32 = 30.0;
+
+/// What carries the receiver: whether the mode filter may take it for a car, and
+/// whether it may turn in place. Set per source; `Auto` decides online.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Platform {
+    /// Decide online: a vehicle that drives fast for a while is a car until it leaves a
+    /// stand sideways (it turned in place).
+    #[default]
+    Auto,
+    /// A car, truck or van: reverses, never turns in place, holds its heading at a stop.
+    Car,
+    /// A robot or other platform that turns in place (and may reverse): a stop holds
+    /// nothing, its heading follows the course once it moves.
+    Robot,
+}
+
+impl Platform {
+    /// The lowercase name (`auto`, `car`, `robot`) used in configs and flags.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Platform::Auto => "auto",
+            Platform::Car => "car",
+            Platform::Robot => "robot",
+        }
+    }
+}
+
+impl std::fmt::Display for Platform {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for Platform {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "auto" => Ok(Platform::Auto),
+            "car" => Ok(Platform::Car),
+            "robot" => Ok(Platform::Robot),
+            other => Err(format!("unknown platform `{other}` (auto, car or robot)")),
+        }
+    }
+}
+
 /// The mode filter's constants (stored in the model's metadata).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -117,6 +191,9 @@ pub struct ModeParams {
     pub axis_deg: f32,
     /// ...for at most this long (s), in case the held heading was wrong.
     pub axis_secs: f32,
+    /// The platform a source has unless its configuration says otherwise
+    /// (`ghnet train --platform` records it; `auto` in older files).
+    pub platform: Platform,
 }
 
 impl Default for ModeParams {
@@ -148,6 +225,7 @@ impl Default for ModeParams {
             max_skips: 3,
             axis_deg: 30.0,
             axis_secs: 2.0,
+            platform: Platform::Auto,
         }
     }
 }
@@ -165,9 +243,12 @@ impl ModeParams {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Vehicle {
     /// Driven above `fast_speed` for `fast_secs`: a car (reverses, never turns in place).
+    /// Always true for [`Platform::Car`], never for [`Platform::Robot`].
     pub car: bool,
     /// Running low quantile of slow speeds, m/s (NaN until the first epoch).
     pub noise: f32,
+    /// What the source's user says carries the receiver; kept through every reset.
+    pub platform: Platform,
 }
 
 impl Vehicle {
@@ -175,6 +256,7 @@ impl Vehicle {
     pub const UNKNOWN: Vehicle = Vehicle {
         car: false,
         noise: f32::NAN,
+        platform: Platform::Auto,
     };
 }
 
@@ -225,6 +307,15 @@ pub struct StepState {
     /// where a receiver's lag (course trailing heading by ω·τ) and the antenna's
     /// lever arm show, so a moving epoch's σ grows with it ([`SigmaMaps::yaw_s`]).
     pub yaw: f32,
+    /// Seconds of plain motion on a steady course up to this epoch (speed at least
+    /// [`RELEASE_SPEED`] and `3·sAcc`, course within [`RELEASE_COURSE_DEG`] of the
+    /// previous epoch's), 0 when this epoch is not: the release rule's clock.
+    pub t_motion: f32,
+    /// Epochs in that run of plain motion.
+    pub n_motion: u16,
+    /// Velocity (north, east; m/s) of the last epoch, for the release rule's
+    /// steadiness.
+    pub motion_v: [f32; 2],
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -249,8 +340,19 @@ impl StepState {
         held_y2: 0.0,
         held_clean: false,
         yaw: 0.0,
+        t_motion: 0.0,
+        n_motion: 0,
+        motion_v: [0.0; 2],
         vehicle: Vehicle::UNKNOWN,
     };
+
+    /// An empty history of a source on `platform`.
+    pub fn fresh(platform: Platform) -> StepState {
+        let mut st = Self::EMPTY;
+        st.vehicle.platform = platform;
+        st.vehicle.car = platform == Platform::Car;
+        st
+    }
 
     /// Whether the last epoch moved (its clock of time stopped is at zero): the one
     /// definition that picks the moving σ maps, records what a stop will hold
@@ -258,6 +360,12 @@ impl StepState {
     /// leaves it as it was.
     pub fn moving_now(&self) -> bool {
         self.t_still == 0.0
+    }
+
+    /// Whether the release rule ends a stand on this epoch: a second of plain motion
+    /// on a steady course ([`RELEASE_S`], and at least two epochs).
+    pub fn released(&self) -> bool {
+        self.t_motion >= RELEASE_S && self.n_motion >= RELEASE_EPOCHS
     }
 
     /// An empty history that keeps what it knew about the vehicle (after a fix gap).
@@ -332,15 +440,20 @@ fn update_noise(mp: &ModeParams, v: &mut Vehicle, speed: f32, acc: f32) {
 fn sigma_v(mp: &ModeParams, v: &Vehicle, acc: f32) -> f32 {
     let known = acc.is_finite();
     if !v.car {
-        return if known {
-            (mp.tip_acc_k * acc).max(mp.sigma_floor)
-        } else {
-            mp.tip_sigma_none
-        };
+        return platform_sigma_v(mp, acc);
     }
     let est = mp.noise_k * v.noise / mp.quantile_factor();
     let rep = if known { mp.acc_k * acc } else { mp.sigma_none };
     est.max(rep).max(mp.sigma_floor)
+}
+
+/// A platform's velocity noise σ (m/s): its receiver's accuracy, or `tip_sigma_none`.
+fn platform_sigma_v(mp: &ModeParams, acc: f32) -> f32 {
+    if acc.is_finite() {
+        (mp.tip_acc_k * acc).max(mp.sigma_floor)
+    } else {
+        mp.tip_sigma_none
+    }
 }
 
 /// The direction rules on a moving epoch: a car's departure against a sure heading
@@ -373,7 +486,10 @@ fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32,
     }
     // Several epochs as well as seconds: a run of glitches under poor sky lasts a few
     // epochs and must not make a slow platform a car.
-    if st.t_fast >= mp.fast_secs && st.n_fast >= FAST_EPOCHS {
+    if st.t_fast >= mp.fast_secs
+        && st.n_fast >= FAST_EPOCHS
+        && st.vehicle.platform != Platform::Robot
+    {
         st.vehicle.car = true;
     }
 }
@@ -410,19 +526,24 @@ fn glitch(
     let unreachable = |secs: f32| (vn - prev[0]).hypot(ve - prev[1]) > mp.a_max * secs + 3.0 * sig;
     let reject = if !(st.prev_v[0].is_finite() && gated && dt > 0.0) {
         false
+    } else if standing && st.released() {
+        // A second of plain motion on a steady course ends any stand: a car that did
+        // not leave along its axis turned in place (or its held heading was wrong).
+        if off_axis_of_held(mp, st, vn, ve, p, r) && st.vehicle.platform == Platform::Auto {
+            st.vehicle.car = false;
+            (st.t_fast, st.n_fast) = (0.0, 0);
+        }
+        false
     } else if standing {
         let elapsed = st.t_used + dt;
         let pending = st.pending_v;
         let confirmed = pending[0].is_finite()
             && (vn - pending[0]).hypot(ve - pending[1]) <= mp.a_max * dt + 3.0 * sig;
         st.pending_v = if moving { [vn, ve] } else { [f32::NAN; 2] };
-        let sure = p < mp.confident_deg.to_radians().powi(2);
-        let off = wrap_rad(ve.atan2(vn) - st.psi).abs();
-        let off_axis = off.min(std::f32::consts::PI - off);
-        let sideways = sure && off_axis > mp.axis_deg.to_radians() + 2.0 * r;
+        let sideways = off_axis_of_held(mp, st, vn, ve, p, r);
         let reject = unreachable(elapsed)
             || (moving && (!confirmed || (sideways && elapsed <= mp.axis_secs)));
-        if !reject && moving && sideways {
+        if !reject && moving && sideways && st.vehicle.platform == Platform::Auto {
             // It kept leaving sideways: it turned in place, so it is no car (a car
             // shows itself again by driving fast).
             st.vehicle.car = false;
@@ -443,6 +564,38 @@ fn glitch(
     reject
 }
 
+/// Whether a velocity leaves a sure held heading's axis (further than `axis_deg` plus
+/// 2σ of the course): a car cannot leave a stand sideways.
+fn off_axis_of_held(mp: &ModeParams, st: &StepState, vn: f32, ve: f32, p: f32, r: f32) -> bool {
+    let sure = p < mp.confident_deg.to_radians().powi(2);
+    let off = wrap_rad(ve.atan2(vn) - st.psi).abs();
+    let off_axis = off.min(std::f32::consts::PI - off);
+    sure && off_axis > mp.axis_deg.to_radians() + 2.0 * r
+}
+
+/// The release rule's clock ([`StepState::t_motion`]): runs while epochs are plain
+/// motion (at least [`RELEASE_SPEED`] and `3·sAcc`) on a steady course.
+fn track_motion(mp: &ModeParams, st: &mut StepState, vn: f32, ve: f32, acc: f32, dt: f32) {
+    let speed = vn.hypot(ve);
+    // The receiver's noise at rest as measured, capped: slow driving inflates the
+    // estimate (it reads slow speeds as noise), and that must not hide real motion.
+    let noise = (st.vehicle.noise / mp.quantile_factor()).min(RELEASE_NOISE_CAP);
+    let acc = if acc.is_finite() { acc } else { 0.0 };
+    let bar = RELEASE_SPEED.max(3.0 * acc).max(4.0 * noise);
+    let plain = speed >= bar;
+    // Steady: the course within RELEASE_COURSE_DEG and the velocity within what a
+    // vehicle can change in `dt` (glitch bursts come back to back with other sizes).
+    let [pn, pe] = st.motion_v;
+    let steady = wrap_rad(ve.atan2(vn) - pe.atan2(pn)).abs() <= RELEASE_COURSE_DEG.to_radians()
+        && (vn - pn).hypot(ve - pe) <= mp.a_max * dt + 0.3;
+    (st.t_motion, st.n_motion) = match (plain, st.n_motion > 0 && steady && dt <= 2.0) {
+        (false, _) => (0.0, 0),
+        (true, true) => (st.t_motion + dt, st.n_motion.saturating_add(1)),
+        (true, false) => (0.0, 1),
+    };
+    st.motion_v = [vn, ve];
+}
+
 /// The first half of an epoch: time, noise, the rules; mutates the non-heading parts of
 /// `st` and returns the step the network corrects. `kf_sigma_v` is the tuned `kf`'s σ_v
 /// (the start convention); `acc` is sAcc or NaN.
@@ -458,6 +611,7 @@ pub fn prepare(
     let speed = vn.hypot(ve);
     let course = ve.atan2(vn);
     update_noise(mp, &mut st.vehicle, speed, acc);
+    track_motion(mp, st, vn, ve, acc, dt);
     let cap2 = cap2();
     let mut step = Step {
         course,
@@ -483,10 +637,20 @@ pub fn prepare(
         st.moved = true;
     }
     step.hold = false;
-    let sig = sigma_v(mp, &st.vehicle, acc);
-    let (shat, r) = measurement(speed, sig);
+    let released = st.released();
+    let mut sig = sigma_v(mp, &st.vehicle, acc);
+    let (mut shat, mut r) = measurement(speed, sig);
+    if released && r >= mp.moving_r {
+        // Plain motion that the noise estimate (inflated by slow driving) calls noise:
+        // measure it as a platform would, by the receiver's own accuracy.
+        sig = platform_sigma_v(mp, acc);
+        (shat, r) = measurement(speed, sig);
+    }
     let p_still = still_variance(mp, st, dt);
-    let moving = r < mp.moving_r;
+    // Released: the motion is real even when the noise estimate says otherwise. (Its
+    // held heading is not forgotten: cars that turn as they pull away are released
+    // off its axis too, and lost more than they gained.)
+    let moving = r < mp.moving_r || released;
     // The gate first: a glitch must neither change the direction nor count as driving.
     step.glitch = glitch(mp, st, vn, ve, speed, sig, dt, moving, p_still, r);
     // A car whose speed is within its receiver's noise (under 3σ: 1% of a standing

@@ -45,7 +45,7 @@ use crate::modes::{commit, prepare, Step};
 use crate::net::Scratch;
 use crate::weights::ModelKind;
 
-pub use crate::modes::StepState;
+pub use crate::modes::{Platform, StepState};
 
 /// Per-epoch inputs of the temporal network (see [`inputs`]).
 pub const INPUTS: usize = 20;
@@ -342,6 +342,7 @@ pub struct History {
     max_gap_s: f64,
     resets: ResetCounts,
     last_reset: Option<Reset>,
+    platform: Platform,
 }
 
 impl History {
@@ -361,7 +362,22 @@ impl History {
             max_gap_s: model.meta().kind.max_gap_s().unwrap_or(f32::INFINITY) as f64,
             resets: ResetCounts::default(),
             last_reset: None,
+            platform: Platform::Auto,
         }
+        .with_platform(model.meta().kind.default_platform())
+    }
+
+    /// Set what carries the source's receiver ([`Platform`]); kept through every
+    /// reset. Clears the history (what it learnt assumed another platform).
+    pub fn with_platform(mut self, platform: Platform) -> Self {
+        self.platform = platform;
+        self.clear_uncounted();
+        self
+    }
+
+    /// What carries the source's receiver.
+    pub fn platform(&self) -> Platform {
+        self.platform
     }
 
     /// Replace the gap limit (seconds); a step longer than this clears the history.
@@ -422,7 +438,7 @@ impl History {
     /// Clear without counting: [`crate::Predictor`] runs stateful models one sample at a
     /// time this way.
     pub(crate) fn clear_uncounted(&mut self) {
-        self.state = StepState::EMPTY;
+        self.state = StepState::fresh(self.platform);
         self.t_last = None;
         self.ring.fill(0.0);
         self.newest = 0;
@@ -543,6 +559,7 @@ pub struct StreamPredictor {
     policy: StatusPolicy,
     scratch: Option<Scratch>,
     y: Vec<f32>,
+    platform: Option<Platform>,
 }
 
 impl StreamPredictor {
@@ -555,7 +572,16 @@ impl StreamPredictor {
             policy: StatusPolicy::default(),
             scratch,
             y,
+            platform: None,
         }
+    }
+
+    /// The platform of the histories [`history`](Self::history) makes (a daemon with
+    /// per-source platforms sets each history's own with [`History::with_platform`]).
+    /// `None` keeps the model's own default.
+    pub fn with_platform(mut self, platform: Option<Platform>) -> Self {
+        self.platform = platform;
+        self
     }
 
     /// Replace the status thresholds.
@@ -576,7 +602,11 @@ impl StreamPredictor {
 
     /// A new, empty history for one source of this model.
     pub fn history(&self) -> History {
-        History::new(&self.model)
+        let h = History::new(&self.model);
+        match self.platform {
+            Some(p) => h.with_platform(p),
+            None => h,
+        }
     }
 
     /// Answer one epoch of the source whose history is `h`. Never panics: a bad
@@ -1245,5 +1275,139 @@ mod tests {
             assert_eq!(out[0], a);
             assert_eq!(out[1].status, Status::Invalid);
         }
+    }
+
+    /// A 5 Hz receiver that smooths (lag `lag_s`), reads exactly 0.000 below 0.3 m/s
+    /// and gives no sAcc, on a vehicle heading `head_deg` at `speed`.
+    struct Snapping {
+        t: f64,
+        lagged: [f32; 2],
+        lag_s: f32,
+        rng: rand_chacha::ChaCha8Rng,
+    }
+
+    impl Snapping {
+        fn new(lag_s: f32, seed: u64) -> Self {
+            let rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            Self {
+                t: 0.0,
+                lagged: [0.0; 2],
+                lag_s,
+                rng,
+            }
+        }
+
+        fn epoch(&mut self, speed: f32, head_deg: f32) -> Epoch {
+            self.t += 0.2;
+            let (s, c) = head_deg.to_radians().sin_cos();
+            let a = if self.lag_s > 0.0 {
+                1.0 - (-0.2 / self.lag_s).exp()
+            } else {
+                1.0
+            };
+            self.lagged[0] += a * (speed * c - self.lagged[0]);
+            self.lagged[1] += a * (speed * s - self.lagged[1]);
+            let mut v = [
+                self.lagged[0] + self.rng.random_range(-0.08f32..0.08),
+                self.lagged[1] + self.rng.random_range(-0.08f32..0.08),
+            ];
+            if v[0].hypot(v[1]) < 0.3 {
+                v = [0.0, 0.0];
+            }
+            Epoch {
+                t_s: self.t,
+                v_north: v[0],
+                v_east: v[1],
+                speed_acc: f32::NAN,
+            }
+        }
+    }
+
+    /// Drives off at 1.5 m/s on `head_deg` after whatever `rx` saw: the longest run of
+    /// `Held` answers at 1 m/s or faster (s) and the largest error after the first
+    /// second of driving.
+    fn drive_off(
+        sp: &mut StreamPredictor,
+        h: &mut History,
+        rx: &mut Snapping,
+        head_deg: f32,
+    ) -> (f64, f32) {
+        let (mut run, mut longest, mut worst) = (0.0, 0.0f64, 0.0f32);
+        for k in 0..100 {
+            let e = rx.epoch(1.5, head_deg);
+            let p = sp.predict(h, &e);
+            let held_fast = p.status == Status::Held && p.speed >= 1.0;
+            run = if held_fast { run + 0.2 } else { 0.0 };
+            longest = longest.max(run);
+            if k >= 10 {
+                let err = (p.heading_deg - head_deg + 540.0).rem_euclid(360.0) - 180.0;
+                worst = worst.max(err.abs());
+            }
+        }
+        (longest, worst)
+    }
+
+    /// A robot that once drove fast enough to be taken for a car (auto), then crept
+    /// for a minute (its receiver's slow speeds inflate the noise estimate), stops,
+    /// turns 90° in place and drives off: the stop does not outlive the motion. No
+    /// `Held` at 1 m/s or faster for more than a second, and the answer follows the
+    /// course within a second. The same with `robot` (nothing held at all) and for a
+    /// car that stops and drives on along its heading (`auto` and `car`).
+    #[test]
+    fn a_stop_never_outlives_the_motion() {
+        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
+        for lag in [0.0, 1.0] {
+            for platform in [Platform::Auto, Platform::Robot, Platform::Car] {
+                let mut sp = StreamPredictor::new(model.clone()).with_platform(Some(platform));
+                let turn = if platform == Platform::Car { 0.0 } else { 90.0 };
+                let mut h = sp.history();
+                let mut rx = Snapping::new(lag, 5);
+                for _ in 0..100 {
+                    sp.predict(&mut h, &rx.epoch(3.0, 0.0));
+                }
+                for _ in 0..300 {
+                    sp.predict(&mut h, &rx.epoch(0.7, 0.0));
+                }
+                let mut held = 0;
+                for k in 0..50 {
+                    let e = rx.epoch(0.0, turn * k as f32 / 49.0);
+                    held += usize::from(sp.predict(&mut h, &e).status == Status::Held);
+                }
+                let (longest, worst) = drive_off(&mut sp, &mut h, &mut rx, turn);
+                let what = format!("{platform} lag {lag}: held {longest} s, worst {worst}°");
+                assert!(longest <= 1.0, "{what}");
+                assert!(worst < 20.0, "{what}");
+                match platform {
+                    Platform::Robot => assert!(held <= 1, "a robot's stop holds nothing: {held}"),
+                    Platform::Car => assert!(held > 40, "a car holds its stop: {held}"),
+                    Platform::Auto => {}
+                }
+            }
+        }
+    }
+
+    /// `car` makes a vehicle a car from its first epoch and keeps it one through a
+    /// sideways departure; `robot` never takes it for one, however fast it drives.
+    #[test]
+    fn the_platform_setting_fixes_the_vehicle_class() {
+        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
+        let mut sp = StreamPredictor::new(model.clone()).with_platform(Some(Platform::Car));
+        let mut h = sp.history();
+        let mut rx = Snapping::new(0.0, 7);
+        sp.predict(&mut h, &rx.epoch(1.0, 0.0));
+        assert!(h.state().vehicle.car, "car from the first epoch");
+        for k in 0..50 {
+            sp.predict(&mut h, &rx.epoch(0.0, 90.0 * k as f32 / 49.0));
+        }
+        drive_off(&mut sp, &mut h, &mut rx, 90.0);
+        assert!(h.state().vehicle.car, "still a car");
+        h.reset();
+        assert!(h.state().vehicle.car, "a reset keeps the platform");
+        let mut sp = StreamPredictor::new(model).with_platform(Some(Platform::Robot));
+        let mut h = sp.history();
+        for _ in 0..200 {
+            sp.predict(&mut h, &rx.epoch(6.0, 0.0));
+        }
+        assert!(!h.state().vehicle.car, "a robot is never a car");
     }
 }

@@ -94,6 +94,15 @@ impl ModelKind {
             }
         }
     }
+
+    /// The platform a source of this model has unless configured otherwise: the
+    /// temporal model's recorded one, `auto` for the others (they do not use it).
+    pub fn default_platform(&self) -> crate::modes::Platform {
+        match self {
+            ModelKind::Temporal { modes, .. } => modes.platform,
+            _ => crate::modes::Platform::Auto,
+        }
+    }
 }
 
 /// What a model file says about itself.

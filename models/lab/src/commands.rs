@@ -168,6 +168,7 @@ pub fn train_data(
     range: Option<(f32, f32)>,
     seed: Option<u64>,
     epochs: Option<usize>,
+    platform: Option<ghnet_models::Platform>,
 ) -> Result<()> {
     let (tr, va) = timeline::read_logs(paths, 0.2)?;
     if let Some((lo, hi)) = range {
@@ -196,6 +197,9 @@ pub fn train_data(
     }
     cfg.seed = seed.unwrap_or(cfg.seed);
     cfg.epochs = epochs.unwrap_or(cfg.epochs);
+    if let Some(p) = platform {
+        cfg.modes.platform = p;
+    }
     // Small logs: short runs, so that a few minutes of data still make mini-batches.
     let n: usize = tr.iter().map(|t| t.len()).sum();
     if n < 50_000 {

@@ -48,7 +48,7 @@ pub enum Platform {
 }
 
 /// How the receiver reports velocity.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum ReceiverKind {
     /// Raw velocity in mm/s and a rough sAcc (σ times 0.7–1.5).
@@ -57,6 +57,11 @@ pub enum ReceiverKind {
     Rtklib,
     /// Speed and course only: course frozen below 0.1 m/s, no accuracy.
     Nmea,
+    /// A consumer receiver (phone, low-cost module): velocity smoothed with a lag of
+    /// 0.5–1.5 s, exactly 0.000 below a speed of 0.3–0.6 m/s (so the first moving
+    /// epoch jumps from zero), no accuracy. Held out of the shipped recipes: it is how
+    /// the tables show σ on a receiver the model has not met.
+    Consumer,
 }
 
 /// One epoch of a simulated track, with its truth.
@@ -100,6 +105,7 @@ pub struct Track {
 
 /// Parameters of [`simulate`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, clap::Args)]
+#[serde(default)]
 pub struct DriveParams {
     /// Number of tracks.
     #[arg(long, default_value_t = 200)]
@@ -147,6 +153,23 @@ pub struct DriveParams {
     /// Share of tracks in test.
     #[arg(long, default_value_t = 0.15)]
     pub test_fraction: f64,
+    /// Receiver styles to draw from (each track draws one).
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "ublox,rtklib,nmea"
+    )]
+    pub receivers: Vec<ReceiverKind>,
+    /// Turn-in-place platforms: slowest and fastest cruising speed, m/s.
+    #[arg(long, value_delimiter = ',', default_value = "0.5,1.8")]
+    pub platform_speed: Vec<f64>,
+    /// Turn-in-place platforms: slowest and fastest spin at a stop, °/s.
+    #[arg(long, value_delimiter = ',', default_value = "10,90")]
+    pub platform_spin: Vec<f64>,
+    /// Turn-in-place platforms: share of stops with a spin.
+    #[arg(long, default_value_t = 0.6)]
+    pub platform_spin_share: f64,
 }
 
 impl Default for DriveParams {
@@ -167,6 +190,35 @@ impl Default for DriveParams {
             p_glitch_bad: 0.1,
             val_fraction: 0.15,
             test_fraction: 0.15,
+            receivers: vec![
+                ReceiverKind::Ublox,
+                ReceiverKind::Rtklib,
+                ReceiverKind::Nmea,
+            ],
+            platform_speed: vec![0.5, 1.8],
+            platform_spin: vec![10.0, 90.0],
+            platform_spin_share: 0.6,
+        }
+    }
+}
+
+impl DriveParams {
+    /// The robots the shipped recipes do not train on: differential-drive platforms
+    /// that cruise at 0.3–2 m/s and spin in place at 20–60 °/s at most stops, as a
+    /// held-out style for the tables.
+    pub fn robots(mut self) -> Self {
+        self.platform_share = 1.0;
+        self.platform_speed = vec![0.3, 2.0];
+        self.platform_spin = vec![20.0, 60.0];
+        self.platform_spin_share = 0.9;
+        self
+    }
+
+    /// `(lo, hi)` of a two-value range parameter, or `default` when it is malformed.
+    fn range(v: &[f64], default: (f64, f64)) -> (f64, f64) {
+        match v {
+            [lo, hi] if lo.is_finite() && hi.is_finite() && lo <= hi => (*lo, *hi),
+            _ => default,
         }
     }
 }
@@ -298,14 +350,16 @@ fn block(rng: &mut ChaCha8Rng, legs: &mut Vec<Leg>) {
 }
 
 /// A turn-in-place platform's plan: creep, roll, stop, spin, sometimes back up.
-fn platform_plan(rng: &mut ChaCha8Rng, total: f64) -> Vec<Leg> {
+fn platform_plan(p: &DriveParams, rng: &mut ChaCha8Rng, total: f64) -> Vec<Leg> {
+    let (v_lo, v_hi) = DriveParams::range(&p.platform_speed, (0.5, 1.8));
+    let (spin_lo, spin_hi) = DriveParams::range(&p.platform_spin, (10.0, 90.0));
     let mut legs = vec![Leg::new(uniform(rng, 0.0, 30.0), 0.0, 0.0)];
     let mut planned = legs[0].secs;
     while planned < total {
         let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
         let leg = match rng.random::<f64>() {
             u if u < 0.35 => {
-                let v = uniform(rng, 0.5, 1.8);
+                let v = uniform(rng, v_lo, v_hi);
                 Leg::new(uniform(rng, 3.0, 30.0), v, sign * uniform(rng, 0.0, 0.3))
             }
             u if u < 0.55 => {
@@ -316,8 +370,8 @@ fn platform_plan(rng: &mut ChaCha8Rng, total: f64) -> Vec<Leg> {
             }
             u if u < 0.85 => {
                 let mut l = Leg::new(uniform(rng, 1.0, 20.0), 0.0, 0.0);
-                if rng.random::<f64>() < 0.6 {
-                    l.spin = sign * uniform(rng, 10.0, 90.0);
+                if rng.random::<f64>() < p.platform_spin_share {
+                    l.spin = sign * uniform(rng, spin_lo, spin_hi);
                     l.secs = uniform(rng, 20.0, 180.0) / l.spin.abs() + uniform(rng, 0.5, 3.0);
                 }
                 l
@@ -386,13 +440,7 @@ struct Receiver {
 
 impl Receiver {
     fn draw(p: &DriveParams, platform: Platform, rng: &mut ChaCha8Rng) -> Self {
-        let kind = *[
-            ReceiverKind::Ublox,
-            ReceiverKind::Rtklib,
-            ReceiverKind::Nmea,
-        ]
-        .choose(rng)
-        .expect("kinds");
+        let kind = *p.receivers.choose(rng).unwrap_or(&ReceiverKind::Ublox);
         Self {
             kind,
             rate_hz: *p.rates_hz.choose(rng).unwrap_or(&1),
@@ -400,6 +448,7 @@ impl Receiver {
             // Only some receivers smooth; RTKLIB's epoch-by-epoch Doppler does not.
             lag_s: match kind {
                 ReceiverKind::Rtklib => 0.0,
+                ReceiverKind::Consumer => uniform(rng, 0.5, p.lag_max_s.max(0.5)),
                 _ if rng.random::<f64>() < 0.5 => 0.0,
                 _ => uniform(rng, 0.2, p.lag_max_s),
             },
@@ -427,7 +476,7 @@ pub fn simulate_track(
     let steps = (secs / DT).round() as usize;
     let legs = match platform {
         Platform::Car => car_plan(rng, secs),
-        Platform::TurnInPlace => platform_plan(rng, secs),
+        Platform::TurnInPlace => platform_plan(p, rng, secs),
     };
     let truth = kinematics(rng, &legs, steps);
     let rx = Receiver::draw(p, platform, rng);
@@ -573,6 +622,12 @@ fn observe(
                 let cd = q(course.to_degrees(), 0.1).to_radians();
                 (sp * cd.cos(), sp * cd.sin(), f64::NAN)
             }
+            // Snaps to zero below its threshold (the track's sAcc factor sets it at
+            // 0.3–0.6 m/s), so motion starts with a jump.
+            ReceiverKind::Consumer if speed < 0.3 + 0.375 * (rx.sacc_factor - 0.7) => {
+                (0.0, 0.0, f64::NAN)
+            }
+            ReceiverKind::Consumer => (q(vn, 1e-3), q(ve, 1e-3), f64::NAN),
         };
         out.push(DriveSample {
             t_s: k as f64 * DT,

@@ -16,7 +16,7 @@ use ghnet_lab::sim::{self, RealisticParams, S1Params};
 use ghnet_lab::{eval, plot, receiver_log, replay, train};
 use ghnet_models::simd::Kernel;
 use ghnet_models::weights::{ModelMeta, FORMAT};
-use ghnet_models::{Model, Predictor, DEFAULT_MODEL};
+use ghnet_models::{Model, Platform, Predictor, DEFAULT_MODEL};
 
 #[derive(Parser)]
 #[command(
@@ -63,6 +63,11 @@ enum Cmd {
         /// Override the recipe's maximum epochs.
         #[arg(long)]
         epochs: Option<usize>,
+        /// What carries the receivers of `--data`: `auto` decides online, `car` never
+        /// turns in place, `robot` turns in place; recorded in the model as its sources'
+        /// default.
+        #[arg(long, value_parser = parse_platform)]
+        platform: Option<Platform>,
         /// Temporal recipes: JSON merged into the recipe's training configuration, for
         /// experiments, e.g. `{"lr": 5e-4, "modes": {"a_max": 6}}`.
         #[arg(long)]
@@ -91,6 +96,9 @@ enum Cmd {
         /// without it the Markdown table goes to stdout.
         #[arg(long)]
         out_dir: Option<PathBuf>,
+        /// What carries the receiver (`auto`, `car`, `robot`); default: the model's own.
+        #[arg(long, value_parser = parse_platform)]
+        platform: Option<Platform>,
     },
     /// Answer every row of a CSV log with heading, σ and status.
     Infer {
@@ -108,6 +116,9 @@ enum Cmd {
         /// Input format; detected when not given (CSV when its header names v_north).
         #[arg(long, value_enum)]
         format: Option<receiver_log::InputFormat>,
+        /// What carries the receiver (`auto`, `car`, `robot`); default: the model's own.
+        #[arg(long, value_parser = parse_platform)]
+        platform: Option<Platform>,
     },
     /// Write a model (built-in or file) to a safetensors file.
     Export {
@@ -243,6 +254,19 @@ fn load(model: &str) -> Result<Arc<Model>> {
     Ok(Arc::new(Model::from_name_or_path(model)?))
 }
 
+/// `model`, with `platform` as its sources' default when given.
+fn load_on(model: &str, platform: Option<Platform>) -> Result<Arc<Model>> {
+    let m = Model::from_name_or_path(model)?;
+    Ok(Arc::new(match platform {
+        Some(p) => m.with_platform(p),
+        None => m,
+    }))
+}
+
+fn parse_platform(s: &str) -> Result<Platform, String> {
+    s.parse()
+}
+
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Simulate { which } => simulate(which),
@@ -253,8 +277,9 @@ fn run(cli: Cli) -> Result<()> {
             kf,
             plot,
             out_dir,
+            platform,
         } => {
-            let m = load(&model)?;
+            let m = load_on(&model, platform)?;
             if data.is_some() || m.is_stateful() {
                 commands::eval_stream(&m, data.as_deref(), kf.as_deref(), plot.as_deref())
             } else {
@@ -266,7 +291,8 @@ fn run(cli: Cli) -> Result<()> {
             input,
             output,
             format,
-        } => infer(&load(&model)?, &input, &output, format),
+            platform,
+        } => infer(&load_on(&model, platform)?, &input, &output, format),
         Cmd::Export { model, output } => {
             let m = load(&model)?;
             std::fs::write(&output, m.to_safetensors())
@@ -311,13 +337,22 @@ fn train(cmd: Cmd) -> Result<()> {
         epochs,
         config,
         quiet,
+        platform,
     } = cmd
     else {
         unreachable!("called with Cmd::Train")
     };
     if !data.is_empty() {
         let output = output.context("--output is required with --data")?;
-        return commands::train_data(&data, &output, init.as_deref(), heading_range, seed, epochs);
+        return commands::train_data(
+            &data,
+            &output,
+            init.as_deref(),
+            heading_range,
+            seed,
+            epochs,
+            platform,
+        );
     }
     // clap's `requires = "data"` does not fire for an empty `Vec`: check here, or a
     // recipe run would silently ignore them.

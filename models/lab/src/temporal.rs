@@ -127,9 +127,9 @@ pub struct Recorded {
 /// left of it.
 fn start_state(before: &StepState, reset: Option<Reset>, first: bool) -> StepState {
     match reset {
-        _ if first => StepState::EMPTY,
+        _ if first => StepState::fresh(before.vehicle.platform),
         Some(Reset::Gap) => before.after_gap(),
-        Some(_) => StepState::EMPTY,
+        Some(_) => StepState::fresh(before.vehicle.platform),
         None => *before,
     }
 }
