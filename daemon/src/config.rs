@@ -5,7 +5,7 @@
 //! back to a default). `ghnetd --print-config` prints the effective result, and
 //! `daemon/ghnetd.example.toml` is tested to equal the defaults.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -13,6 +13,7 @@ use anyhow::{bail, Context};
 use clap::Parser;
 use ghnet_client::iceoryx2;
 use ghnet_client::{names, IpcConfig, ServiceSettings};
+use ghnet_models::Platform;
 use serde::{Deserialize, Serialize};
 
 /// Upper bound for `sources.max_sources`: every source is one WaitSet attachment and
@@ -189,6 +190,13 @@ pub struct ModelSection {
     /// Above this speed (m/s) the input is `InvalidInput` (a receiver glitch, not a
     /// vehicle).
     pub max_speed: f64,
+    /// What carries the sources' receivers, for the temporal model: `auto` (decides
+    /// online), `car` (reverses, never turns in place) or `robot` (turns in place).
+    /// Unset: the model's own default (`auto` for the built-in models).
+    pub platform: Option<Platform>,
+    /// Per-source overrides of `platform`: source name to platform.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub platforms: BTreeMap<String, Platform>,
 }
 
 impl Default for ModelSection {
@@ -200,7 +208,17 @@ impl Default for ModelSection {
             stationary_speed: f32_to_f64(p.stationary_speed),
             max_std_deg: f32_to_f64(p.max_std_deg),
             max_speed: f32_to_f64(p.max_speed),
+            platform: None,
+            platforms: BTreeMap::new(),
         }
+    }
+}
+
+impl ModelSection {
+    /// The platform of `source`: its override, else `platform`; `None` leaves the
+    /// model's own default.
+    pub fn platform_of(&self, source: &str) -> Option<Platform> {
+        self.platforms.get(source).copied().or(self.platform)
     }
 }
 
@@ -217,6 +235,9 @@ impl ModelSection {
             if !(v.is_finite() && v > 0.0) {
                 bail!("{key}: {v} must be a positive number");
             }
+        }
+        for name in self.platforms.keys() {
+            names::validate_source_name(name).context("model.platforms")?;
         }
         if self.stationary_speed >= self.max_speed {
             bail!(
@@ -490,6 +511,12 @@ pub struct Cli {
     /// model.max_speed (m/s).
     #[arg(long, value_name = "M_PER_S")]
     pub max_speed: Option<f64>,
+    /// model.platform: auto, car or robot (every source without an override).
+    #[arg(long, value_name = "PLATFORM")]
+    pub platform: Option<Platform>,
+    /// model.platforms: one source's platform, as SOURCE=PLATFORM (repeatable).
+    #[arg(long, value_name = "SOURCE=PLATFORM", value_parser = parse_source_platform)]
+    pub source_platform: Vec<(String, Platform)>,
     /// history.max_gap_s: a longer time step clears a source's history (stateful
     /// models; default: the model's own limit).
     #[arg(long, value_name = "S")]
@@ -598,6 +625,10 @@ impl Config {
         set(&mut self.model.stationary_speed, &cli.stationary_speed);
         set(&mut self.model.max_std_deg, &cli.max_std_deg);
         set(&mut self.model.max_speed, &cli.max_speed);
+        set_some(&mut self.model.platform, &cli.platform);
+        self.model
+            .platforms
+            .extend(cli.source_platform.iter().cloned());
         set_some(&mut self.history.max_gap_s, &cli.history_max_gap_s);
         set(&mut self.stats.interval_s, &cli.stats_interval_s);
         set(&mut self.zenoh.enabled, &cli.zenoh_enabled);
@@ -743,6 +774,14 @@ fn check_root_path(root: &std::path::Path) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// `SOURCE=PLATFORM` of `--source-platform`.
+fn parse_source_platform(s: &str) -> Result<(String, Platform), String> {
+    let (name, platform) = s
+        .split_once('=')
+        .ok_or_else(|| format!("`{s}` is not SOURCE=PLATFORM"))?;
+    Ok((name.to_owned(), platform.parse()?))
 }
 
 #[cfg(test)]

@@ -28,7 +28,7 @@ use std::sync::Arc;
 
 use ghnet_client::{HeadingEstimate, VelocitySample};
 use ghnet_models::stream::{Epoch, History, Reset, StreamBatch, StreamPredictor};
-use ghnet_models::{Model, Prediction, Predictor, StatusPolicy};
+use ghnet_models::{Model, Platform, Prediction, Predictor, StatusPolicy};
 
 use crate::answer::{Booked, Counters, Limits, ModelTag, Sequence, Tracker};
 
@@ -74,8 +74,9 @@ impl Runner {
         }
     }
 
-    /// A fresh history for one source (`None` for a per-epoch model).
-    pub fn history(&self) -> Option<SourceHistory> {
+    /// A fresh history for one source (`None` for a per-epoch model), on `platform`
+    /// (`None`: the model's default).
+    pub fn history(&self, platform: Option<Platform>) -> Option<SourceHistory> {
         match self {
             Runner::Epoch(_) => None,
             Runner::Stream {
@@ -84,6 +85,10 @@ impl Runner {
                 ..
             } => {
                 let h = predictor.history();
+                let h = match platform {
+                    Some(p) => h.with_platform(p),
+                    None => h,
+                };
                 let h = match max_gap_s {
                     Some(g) => h.with_max_gap(*g),
                     None => h,
@@ -98,7 +103,7 @@ impl Runner {
 
     /// The gap limit histories use, seconds (`None` for a per-epoch model).
     pub fn max_gap_s(&self) -> Option<f64> {
-        self.history().map(|h| h.history.max_gap_s())
+        self.history(None).map(|h| h.history.max_gap_s())
     }
 
     /// Books `s` on `tracker` and answers it: through the per-epoch predictor, or
@@ -365,7 +370,7 @@ mod tests {
             name: HeadingEstimate::encode_model_name(model.name()),
         };
         let runner = Runner::new(model, StatusPolicy::default(), None);
-        let history = runner.history();
+        let history = runner.history(None);
         (runner, Tracker::default(), history, tag)
     }
 
@@ -379,7 +384,7 @@ mod tests {
     #[test]
     fn per_epoch_models_keep_no_history() {
         let (runner, ..) = setup("ghnet-epoch");
-        assert!(runner.history().is_none() && runner.max_gap_s().is_none());
+        assert!(runner.history(None).is_none() && runner.max_gap_s().is_none());
     }
 
     /// A car that drives east and stops (10 Hz): `Held` at its last heading, σ

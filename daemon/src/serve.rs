@@ -224,6 +224,7 @@ impl Daemon {
             stale_after_ms = config.sources.stale_after_ms,
             stateful = model.is_stateful(),
             history_max_gap_s = ?config.history.max_gap_s.or(model.meta().kind.max_gap_s().map(f64::from)),
+            platform = %config.model.platform.unwrap_or(model.meta().kind.default_platform()),
             lock = %lock.path().display(),
             "ghnetd starting"
         );
@@ -676,7 +677,7 @@ impl Daemon {
             name,
             kind,
             counters,
-            self.runner.history(),
+            self.runner.history(self.config.model.platform_of(name)),
         )
     }
 

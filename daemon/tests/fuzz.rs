@@ -255,7 +255,7 @@ proptest! {
             name: HeadingEstimate::encode_model_name(model.name()),
         };
         let mut runner = Runner::new(model, Default::default(), None);
-        let mut history = runner.history();
+        let mut history = runner.history(None);
         let limits = Limits { max_speed: 100.0 };
         let mut t = Tracker::default();
         let (mut gaps, mut dups, mut back, mut invalid) = (0u64, 0u64, 0u64, 0u64);

@@ -247,6 +247,35 @@ pub struct Memory {
     pub drives_within_2sigma: Option<[f64; 3]>,
     /// Drives counted in the percentiles.
     pub drives: usize,
+    /// The longest run of `Held` answers at a measured speed of [`HELD_MOVING_SPEED`]
+    /// or faster, seconds (each epoch counts until the next, at most 1 s): a stop that outlives the
+    /// motion, the failure a filter fusing held headings cannot see.
+    pub held_moving_s: f64,
+}
+
+/// Measured speed (m/s) from which a `Held` answer counts in [`Memory::held_moving_s`].
+pub const HELD_MOVING_SPEED: f32 = 1.0;
+
+/// The longest run (s) of `held` epochs at [`HELD_MOVING_SPEED`] or faster in `t`, each
+/// epoch lasting until the next (the last as long as the one before it).
+fn longest_held_moving(t: &LogTrack, held: impl Fn(usize) -> bool) -> f64 {
+    let (mut run, mut longest) = (0.0f64, 0.0f64);
+    for i in 0..t.len() {
+        let fast = t.v_north[i].hypot(t.v_east[i]) >= HELD_MOVING_SPEED;
+        run = if held(i) && fast {
+            let dt = match (t.t_s.get(i + 1), i.checked_sub(1)) {
+                (Some(next), _) => next - t.t_s[i],
+                (None, Some(prev)) => t.t_s[i] - t.t_s[prev],
+                (None, None) => 0.0,
+            };
+            // A fix gap after a held epoch is not time held.
+            run + dt.min(1.0)
+        } else {
+            0.0
+        };
+        longest = longest.max(run);
+    }
+    longest
 }
 
 /// Fewest epochs a drive needs to count in [`Memory::drives_within_1sigma`].
@@ -401,7 +430,11 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
     // Each stop's first held epoch (its one error and σ), and the epochs held.
     let (mut stops, mut held_epochs) = (Vec::new(), 0);
     let mut drives = Vec::new();
+    let mut held_moving_s = 0.0f64;
     for t in tracks {
+        let s0 = start;
+        held_moving_s =
+            held_moving_s.max(longest_held_moving(t, |i| a.status[s0 + i] == Status::Held));
         if t.len() >= MIN_DRIVE_EPOCHS {
             let idx: Vec<usize> = (start..start + t.len()).collect();
             drives.push(cell(a, truth, &idx));
@@ -438,6 +471,7 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
         drives_within_1sigma: spread(|c| c.within_1sigma),
         drives_within_2sigma: spread(|c| c.within_2sigma),
         drives: drives.len(),
+        held_moving_s,
     })
 }
 
@@ -546,6 +580,11 @@ fn memory_markdown(name: &str, m: &Memory) -> String {
             100.0 * m.stops_within_2sigma
         );
     }
+    s += &format!(
+        ".\n\nLongest `Held` run of {name} at {HELD_MOVING_SPEED} m/s or faster (measured): \
+         {:.1} s",
+        m.held_moving_s
+    );
     if let (Some(a), Some(b)) = (m.drives_within_1sigma, m.drives_within_2sigma) {
         let pct = |p: [f64; 3]| {
             format!(
