@@ -313,9 +313,13 @@ pub struct StepState {
     pub t_motion: f32,
     /// Epochs in that run of plain motion.
     pub n_motion: u16,
-    /// Velocity (north, east; m/s) of the last epoch, for the release rule's
-    /// steadiness.
+    /// Velocity (north, east; m/s) of the run's last steady epoch, for the release
+    /// rule's steadiness.
     pub motion_v: [f32; 2],
+    /// Seconds since that epoch.
+    pub motion_dt: f32,
+    /// Unsteady epochs skipped since (glitches inside a departure), at most `max_skips`.
+    pub motion_skips: u8,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -343,6 +347,8 @@ impl StepState {
         t_motion: 0.0,
         n_motion: 0,
         motion_v: [0.0; 2],
+        motion_dt: 0.0,
+        motion_skips: 0,
         vehicle: Vehicle::UNKNOWN,
     };
 
@@ -583,16 +589,30 @@ fn track_motion(mp: &ModeParams, st: &mut StepState, vn: f32, ve: f32, acc: f32,
     let acc = if acc.is_finite() { acc } else { 0.0 };
     let bar = RELEASE_SPEED.max(3.0 * acc).max(4.0 * noise);
     let plain = speed >= bar;
+    st.motion_dt += dt;
     // Steady: the course within RELEASE_COURSE_DEG and the velocity within what a
-    // vehicle can change in `dt` (glitch bursts come back to back with other sizes).
+    // vehicle can change since the run's last epoch (glitch bursts come back to back
+    // with other sizes).
     let [pn, pe] = st.motion_v;
-    let steady = wrap_rad(ve.atan2(vn) - pe.atan2(pn)).abs() <= RELEASE_COURSE_DEG.to_radians()
-        && (vn - pn).hypot(ve - pe) <= mp.a_max * dt + 0.3;
-    (st.t_motion, st.n_motion) = match (plain, st.n_motion > 0 && steady && dt <= 2.0) {
-        (false, _) => (0.0, 0),
-        (true, true) => (st.t_motion + dt, st.n_motion.saturating_add(1)),
-        (true, false) => (0.0, 1),
-    };
+    let since = st.motion_dt;
+    let steady = st.n_motion > 0
+        && since <= 2.0
+        && wrap_rad(ve.atan2(vn) - pe.atan2(pn)).abs() <= RELEASE_COURSE_DEG.to_radians()
+        && (vn - pn).hypot(ve - pe) <= mp.a_max * since + 0.3;
+    if plain && steady {
+        st.t_motion += since;
+        st.n_motion = st.n_motion.saturating_add(1);
+    } else if plain && st.n_motion > 0 && st.motion_skips < mp.max_skips {
+        // A glitch inside a departure neither counts nor ends the run (the run's time
+        // goes on, measured from its last steady epoch).
+        st.motion_skips += 1;
+        return;
+    } else {
+        st.t_motion = 0.0;
+        st.n_motion = u16::from(plain);
+    }
+    st.motion_skips = 0;
+    st.motion_dt = 0.0;
     st.motion_v = [vn, ve];
 }
 
