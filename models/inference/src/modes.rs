@@ -600,7 +600,9 @@ fn track_motion(mp: &ModeParams, st: &mut StepState, vn: f32, ve: f32, acc: f32,
         && wrap_rad(ve.atan2(vn) - pe.atan2(pn)).abs() <= RELEASE_COURSE_DEG.to_radians()
         && (vn - pn).hypot(ve - pe) <= mp.a_max * since + 0.3;
     if plain && steady {
-        st.t_motion += since;
+        // Skipped epochs' time does not count: two glitch bursts alike, apart, are not
+        // a departure.
+        st.t_motion += dt;
         st.n_motion = st.n_motion.saturating_add(1);
     } else if plain && st.n_motion > 0 && st.motion_skips < mp.max_skips {
         // A glitch inside a departure neither counts nor ends the run (the run's time
