@@ -28,6 +28,7 @@ pub mod drive;
 pub mod eval;
 pub mod logs;
 pub mod loss;
+pub mod ownlogs;
 pub mod plot;
 pub mod receiver_log;
 pub mod recipes;
