@@ -209,14 +209,18 @@ pub fn train_data(
         base.name()
     );
     let model = if new_va <= base_va {
-        Arc::new(trained)
+        trained
     } else {
         eprintln!(
             "the fitted model is worse on the held-out part: writing {} unchanged",
             base.name()
         );
-        Arc::new(base)
+        base
     };
+    // Named after the output, whatever it came from: consumers tell models by name.
+    let mut meta = model.meta().clone();
+    meta.name = name;
+    let model = Arc::new(Model::new(model.params().clone(), meta));
     for t in timeline::tables(
         &model,
         &kf,
