@@ -34,3 +34,4 @@ for name, file in (("paper-s1", "paper-s1.summary.md"), ("ghnet-epoch", "ghnet-e
                   lambda m: m.group(1) + table + m.group(2), text, flags=re.S)
 readme.write_text(text)
 PY
+bash models/unmet.sh

@@ -247,6 +247,12 @@ pub struct Vehicle {
     pub car: bool,
     /// Running low quantile of slow speeds, m/s (NaN until the first epoch).
     pub noise: f32,
+    /// Mean square of the course's scatter at speed, as a velocity across the track
+    /// (m²/s²): how far each course departs from the previous heading turned at the
+    /// current yaw rate, times the speed, smoothed over [`SCATTER_TAU_S`] of driving
+    /// (NaN until measured). Where a receiver's accuracy (or its absence) understates
+    /// its noise, this is what σ has not met ([`SigmaMaps::scatter_k`]).
+    pub scatter: f32,
     /// What the source's user says carries the receiver; kept through every reset.
     pub platform: Platform,
 }
@@ -256,6 +262,7 @@ impl Vehicle {
     pub const UNKNOWN: Vehicle = Vehicle {
         car: false,
         noise: f32::NAN,
+        scatter: f32::NAN,
         platform: Platform::Auto,
     };
 }
@@ -409,6 +416,8 @@ pub struct Step {
     pub sigma_v: f32,
     /// Speed, m/s.
     pub speed: f32,
+    /// The receiver reported a speed accuracy (sAcc) with this epoch.
+    pub has_acc: bool,
 }
 
 fn cap2() -> f32 {
@@ -579,6 +588,53 @@ fn off_axis_of_held(mp: &ModeParams, st: &StepState, vn: f32, ve: f32, p: f32, r
     sure && off_axis > mp.axis_deg.to_radians() + 2.0 * r
 }
 
+/// Speed (m/s) from which courses feed [`Vehicle::scatter`]: slower, the course's
+/// scatter is the speed's business, which σ already knows.
+pub const SCATTER_SPEED: f32 = 3.0;
+
+/// Longest epoch interval (s) whose course feeds [`Vehicle::scatter`]: over a longer
+/// one the vehicle's own turning (a junction at 1 Hz) outweighs the receiver's noise,
+/// and a floor built on it doubled a 1 Hz car's σ on straights.
+pub const SCATTER_MAX_DT: f32 = 0.55;
+
+/// How many times the σ_v from its sAcc a receiver's course scatter must reach for the
+/// scatter floor to apply ([`SigmaMaps::scatter_k`]): the σ maps are fitted on
+/// receivers whose sAcc is rough (0.7–1.5× the truth, or RTKLIB's formal value near
+/// 0.07 m/s), so they cover those; a floor from twice the sAcc on took the median
+/// held-out car drive from 69% to 75% within 1σ, from three times 72%. Receivers
+/// without sAcc get the floor as soon as the scatter exceeds the σ_v the filter
+/// guessed for them.
+pub const SCATTER_RATIO_ACC: f32 = 3.0;
+
+/// Seconds of driving [`Vehicle::scatter`] averages over.
+pub const SCATTER_TAU_S: f32 = 30.0;
+
+/// Feed [`Vehicle::scatter`] with this epoch's course against the previous heading
+/// turned at the yaw rate, when both epochs moved at speed (no stop, gap or glitch in
+/// between: `t_still` and `prev_speed` say so) and not in reverse.
+fn update_scatter(st: &mut StepState, vn: f32, ve: f32, dt: f32) {
+    let speed = vn.hypot(ve);
+    if !(st.has_prior
+        && st.moving_now()
+        && !st.reverse
+        && speed >= SCATTER_SPEED
+        && st.prev_speed >= SCATTER_SPEED
+        && dt > 0.0
+        && dt <= SCATTER_MAX_DT)
+    {
+        return;
+    }
+    let e = wrap_rad(ve.atan2(vn) - (st.psi + st.yaw * dt));
+    // A glitch or a misread direction is not scatter: cap one epoch's share.
+    let x = (speed * e.sin()).powi(2).min(1.0);
+    let v = &mut st.vehicle.scatter;
+    *v = if v.is_finite() {
+        *v + (dt / SCATTER_TAU_S).min(1.0) * (x - *v)
+    } else {
+        x
+    };
+}
+
 /// The release rule's clock ([`StepState::t_motion`]): runs while epochs are plain
 /// motion (at least [`RELEASE_SPEED`] and `3·sAcc`) on a steady course.
 fn track_motion(mp: &ModeParams, st: &mut StepState, vn: f32, ve: f32, acc: f32, dt: f32) {
@@ -647,6 +703,7 @@ pub fn prepare(
         glitch: false,
         sigma_v: f32::NAN,
         speed,
+        has_acc: acc.is_finite(),
     };
     if !st.has_prior {
         return step;
@@ -659,6 +716,7 @@ pub fn prepare(
         st.moved = true;
     }
     step.hold = false;
+    update_scatter(st, vn, ve, dt);
     let released = st.released();
     let mut sig = sigma_v(mp, &st.vehicle, acc);
     let (mut shat, mut r) = measurement(speed, sig);
@@ -934,6 +992,12 @@ pub struct SigmaMaps {
     /// all receivers pooled, it grew 1.7×, so σ was too wide for quiet receivers and
     /// too narrow for noisy ones. False (older files) keeps `y₂`.
     pub moving_without_y2: bool,
+    /// Floor of a moving epoch's reported σ, as a multiple of the course scatter the
+    /// source has shown at speed ([`Vehicle::scatter`]) over the speed: `scatter_k ·
+    /// √scatter / speed`. The maps are fitted on receivers the recipes know; a receiver
+    /// noisier than its accuracy says (or one without any) shows it here first. 0
+    /// (older files) is no floor.
+    pub scatter_k: f32,
     /// Cars, moving at speed: the σ with its turn term to the reported σ (a turn's
     /// errors have heavier tails than a Gaussian term covers, so the sum is mapped
     /// again). Cars only: the simulated platforms turn in place below [`TURN_SPEED`],

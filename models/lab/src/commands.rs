@@ -93,6 +93,22 @@ pub fn train_temporal_recipe(
     Ok(())
 }
 
+/// `ghnet calibrate`: refit the σ maps of a temporal model on the training and
+/// validation tracks of the recipe it names, headings unchanged (what training does
+/// last, without training again).
+pub fn calibrate_recipe_model(model: &str, output: &Path) -> Result<()> {
+    let m = Model::from_name_or_path(model)?;
+    let r: TemporalRecipe = serde_json::from_value(m.meta().training_data.clone())
+        .context("the model's metadata names no temporal recipe")?;
+    let [tr, va, _] = r.tracks();
+    let both: Vec<_> = tr.into_iter().chain(va).collect();
+    let out = ghnet_lab::temporal::calibrate(m.params().clone(), m.meta().clone(), &both);
+    std::fs::write(output, out.to_safetensors())
+        .with_context(|| format!("writing {}", output.display()))?;
+    eprintln!("wrote {}", output.display());
+    Ok(())
+}
+
 /// The trained model's metadata with its training run and its test metrics (overall and
 /// after the first motion) written in.
 fn shipped_meta(
@@ -289,6 +305,7 @@ fn own_config(
         window: base.params().arch().window,
         modes: chosen,
         yaw_sigma_s: sigma_map.yaw_s,
+        scatter_k: sigma_map.scatter_k,
         lr: TemporalConfig::default().lr / 4.0,
         ..TemporalConfig::default()
     };

@@ -327,6 +327,7 @@ mod tests {
             glitch: false,
             sigma_v: 0.1,
             speed: 1.0,
+            has_acc: true,
         };
         type Case = ([f32; 3], Step, f32, Option<bool>);
         let cases: [Case; 6] = [

@@ -120,6 +120,16 @@ enum Cmd {
         #[arg(long, value_parser = parse_platform)]
         platform: Option<Platform>,
     },
+    /// Refit the σ maps of a temporal model on the training and validation tracks of
+    /// the recipe in its metadata (headings unchanged): what training does last.
+    Calibrate {
+        /// Built-in model name or safetensors path.
+        #[arg(long, default_value = DEFAULT_MODEL)]
+        model: String,
+        /// Output file.
+        #[arg(long)]
+        output: PathBuf,
+    },
     /// Write a model (built-in or file) to a safetensors file.
     Export {
         /// Built-in model name or safetensors path.
@@ -293,6 +303,7 @@ fn run(cli: Cli) -> Result<()> {
             format,
             platform,
         } => infer(&load_on(&model, platform)?, &input, &output, format),
+        Cmd::Calibrate { model, output } => commands::calibrate_recipe_model(&model, &output),
         Cmd::Export { model, output } => {
             let m = load(&model)?;
             std::fs::write(&output, m.to_safetensors())
