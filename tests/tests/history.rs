@@ -425,3 +425,40 @@ fn sources_answered_together_equal_each_alone_bit_for_bit() {
         tracks.len()
     );
 }
+
+/// (8) `--platform` and `--source-platform` reach the source's history: a robot source
+/// (`--source-platform bot=robot`, over a `car` default) drives fast, stops while it
+/// turns in place and drives off; ghnetd answers every sample exactly as the in-process
+/// predictor on `robot`, and not as one on `car` (which holds the stop).
+#[test]
+fn a_source_platform_override_reaches_its_history() {
+    let one = start(
+        "bot",
+        Some("ghnet-temporal"),
+        &["--platform", "car", "--source-platform", "bot=robot"],
+    );
+    let model = Arc::new(Model::builtin("ghnet-temporal").unwrap());
+    let on = |p| {
+        let sp = StreamPredictor::new(model.clone()).with_platform(Some(p));
+        let h = sp.history();
+        (sp, h)
+    };
+    let (mut robot, mut robot_h) = on(ghnet_models::Platform::Robot);
+    let (mut car, mut car_h) = on(ghnet_models::Platform::Car);
+    let t0 = now_ns();
+    let mut differs = 0;
+    for seq in 0..60u64 {
+        let t = seq as f64;
+        let s = match seq {
+            0..20 => moving(t0, seq, t, 4.0, 10.0),
+            20..40 => moving(t0, seq, t, 0.0, 0.0),
+            _ => moving(t0, seq, t, 1.5, 100.0),
+        };
+        let h = ask(&one.gnss, &one.headings, s);
+        let want = robot.predict(&mut robot_h, &epoch(&s));
+        assert_same(&h, &want, &format!("seq {seq}"));
+        let as_car = car.predict(&mut car_h, &epoch(&s));
+        differs += usize::from(as_car.status != want.status);
+    }
+    assert!(differs > 10, "a car would have answered alike: {differs}");
+}
