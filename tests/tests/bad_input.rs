@@ -1,7 +1,7 @@
-//! Issue #5's bad-input table, one test per row, each through a real `ghnetd`:
-//! every sample is answered exactly once with a status and its echoed `seq`, the
-//! daemon's counters say why, and the next good sample is answered normally. Plus
-//! undecodable Zenoh payloads at a real `ZenohHeadingSubscriber`.
+//! The bad-input table (tests/tools/README.md, "Bad input"), one test per row, each
+//! through a real `ghnetd`: every sample is answered exactly once with a status and its
+//! echoed `seq`, the daemon's counters say why, and the next good sample is answered
+//! normally. Plus undecodable Zenoh payloads at a real `ZenohHeadingSubscriber`.
 //!
 //! A case is a list of samples sent after one good sample (seq 0) and followed by
 //! one good sample; [`run_case`] checks every answer, then the daemon's counters

@@ -1,4 +1,4 @@
-//! Faults (issue #5): crashed and stuck subscribers, silent sources (`Stale`), a second
+//! Faults: crashed and stuck subscribers, silent sources (`Stale`), a second
 //! ghnetd on the same prefix, full services, and owner-only permissions. Real ghnetd
 //! processes, real child processes, real shared memory.
 

@@ -14,7 +14,7 @@
 //!   permissions; SIGTERM.
 //! - `zenoh_output`, `zenoh_acl`, `netns`, `python` — the Zenoh output, its access
 //!   control, another network namespace, the Python clients.
-//! - `pressure` — reliability under pressure (issue 12): sources retried until
+//! - `pressure` — reliability under pressure: sources retried until
 //!   served, descriptors and shared memory running out, hostile model files, root
 //!   paths, source names and `ghnet infer` arguments.
 //! - `soak` — 100 sources × 10 Hz × 60 s through `ghnet_tools::soak`.

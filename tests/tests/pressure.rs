@@ -1,8 +1,9 @@
-//! Reliability under pressure (issue 12): every row of the issue's table through real
-//! processes. Sources ghnetd cannot open are listed in the stats with the reason and
-//! retried until served; descriptors and shared memory running out are reported by
-//! name and never take ghnetd or the other sources down; hostile model files, root
-//! paths, source names and `ghnet infer` arguments are refused or reported in one line.
+//! Reliability under pressure: every pressure row of the reliability tables
+//! (tests/tools/README.md) through real processes. Sources ghnetd cannot open are listed
+//! in the stats with the reason and retried until served; descriptors and shared memory
+//! running out are reported by name and never take ghnetd or the other sources down;
+//! hostile model files, root paths, source names and `ghnet infer` arguments are refused
+//! or reported in one line.
 
 use std::ffi::OsString;
 use std::path::Path;

@@ -1,4 +1,4 @@
-//! The CI soak (issue #5): 100 sources × 10 Hz × 60 s against a real ghnetd; every
+//! The CI soak: 100 sources × 10 Hz × 60 s against a real ghnetd; every
 //! sequence number gets exactly one heading on iceoryx2 and on Zenoh (same bytes on
 //! both), and ghnetd's resident memory grows by less than 1 MB after the warm-up.
 //!

@@ -1,4 +1,4 @@
-//! `perf`: the daemon-level benchmark of issue #6 in one run — latency, throughput,
+//! `perf`: the daemon-level benchmark in one run — latency, throughput,
 //! footprint and allocations of the real `ghnetd`, each beside the raw transport
 //! doing the same hops without a model, printed as one Markdown table.
 //!
