@@ -246,7 +246,7 @@ fn print_report(args: &Args, rows: &[Row], took: Duration) -> anyhow::Result<()>
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     let command: Vec<String> = std::env::args().collect();
     println!();
-    println!("## ghnetd performance (issue #6)");
+    println!("## ghnetd performance");
     println!();
     println!("- command: `{}`", command.join(" "));
     println!(

@@ -452,7 +452,7 @@ impl std::fmt::Display for ThroughputRun {
 }
 
 /// The share of the raw echo's throughput ghnetd must keep with the default model in
-/// the same run (issue 14): the model may cost, but not most of the daemon's capacity.
+/// the same run: the model may cost, but not most of the daemon's capacity.
 /// The echo itself spreads by ±10% between runs on a 2-core VM, so one run can land
 /// on either side; quote several.
 const THROUGHPUT_RATIO: f64 = 0.6;
