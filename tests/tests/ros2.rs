@@ -149,22 +149,29 @@ impl Feed {
     }
 
     /// Sends the next sample (1 s of sample time after the last) and returns ghnetd's
-    /// answer.
+    /// answer. A sample nobody answers within a second (a restarted ghnetd that was
+    /// not subscribed yet: the dead one's subscriber counts until it is cleaned up)
+    /// is followed by the next; every message ghnetd sends meanwhile is kept.
     fn send(&mut self, speed: f32, course_deg: f32, invalid: bool) -> HeadingEstimate {
-        let mut s = sample(self.t0, self.seq, self.seq as f64, speed, course_deg);
-        if invalid {
-            s.flags |= flags::INVALID;
+        let t0 = Instant::now();
+        loop {
+            let mut s = sample(self.t0, self.seq, self.seq as f64, speed, course_deg);
+            if invalid {
+                s.flags |= flags::INVALID;
+            }
+            self.seq += 1;
+            self.gnss.send(s).unwrap();
+            let deadline = Instant::now() + Duration::from_secs(1);
+            let left = || deadline.saturating_duration_since(Instant::now());
+            while let Some(h) = self.headings.recv_timeout(left()).unwrap() {
+                assert!(h.seq <= s.seq, "answers in order: {h:?} after {s:?}");
+                self.answers.push(h);
+                if h.seq == s.seq && h.heading_status() != Some(HeadingStatus::Stale) {
+                    return h;
+                }
+            }
+            assert!(t0.elapsed() < WATCHDOG, "watchdog: no answer to {s:?}");
         }
-        self.seq += 1;
-        self.gnss.send(s).unwrap();
-        let h = self
-            .headings
-            .recv_timeout(WATCHDOG)
-            .unwrap()
-            .expect("an answer");
-        assert_eq!(h.seq, s.seq, "answers in order");
-        self.answers.push(h);
-        h
     }
 
     /// Waits for ghnetd's `Stale` message after the source went quiet.
@@ -674,4 +681,182 @@ fn rmw_zenoh_wire_is_what_rosbags_reads_and_a_late_router_is_waited_for() {
 fn attachment_seq(v: &Value) -> i64 {
     let a = unhex(v["attachment"].as_str().expect("attachment"));
     i64::from_le_bytes(a[..8].try_into().expect("33 bytes"))
+}
+
+/// Starts `ghnet-ros2` in `host` with `args` and the namespace's iceoryx2 flags; its
+/// log goes to `log`.
+fn spawn_bridge(
+    ns: &TestNamespace,
+    host: &NetNamespace,
+    log: &std::path::Path,
+    args: &[&str],
+) -> Proc {
+    let bin = find_binary("ghnet-ros2").expect("ghnet-ros2 is built by cargo test --workspace");
+    Proc::spawn(
+        Command::new("ip")
+            .args(["netns", "exec", host.name()])
+            .arg(bin)
+            .args(args)
+            .arg("--iceoryx2-global-prefix")
+            .arg(ns.global_prefix())
+            .arg("--iceoryx2-root-path")
+            .arg(ns.root_path())
+            .env_remove("ROS_DOMAIN_ID")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(log).unwrap()),
+    )
+}
+
+/// Starts the rclpy listener in `host` on `domain` with `args`; its lines after
+/// `ready`.
+fn spawn_listener(
+    host: &NetNamespace,
+    domain: &str,
+    args: &[&str],
+) -> (Proc, mpsc::Receiver<String>) {
+    let mut p = Proc::spawn(
+        Command::new("ip")
+            .args(["netns", "exec", host.name(), "python3"])
+            .arg(listener_script())
+            .args(args)
+            .env("ROS_DOMAIN_ID", domain)
+            .env("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped()),
+    );
+    let lines = lines_of(&mut p.0);
+    let ready = lines.recv_timeout(WATCHDOG).expect("rclpy listener ready");
+    assert_eq!(ready, "ready");
+    (p, lines)
+}
+
+/// Reads until a `/diagnostics` message satisfies `cond`; returns it.
+fn await_diagnostics(
+    heard: &mut Heard,
+    lines: &mpsc::Receiver<String>,
+    what: &str,
+    cond: impl Fn(&Value) -> bool,
+) -> Value {
+    let t0 = Instant::now();
+    loop {
+        if let Some(d) = heard.diagnostics.iter().rev().find(|d| cond(d)) {
+            return d.clone();
+        }
+        assert!(
+            t0.elapsed() < WATCHDOG,
+            "watchdog: {what}; last: {:?}",
+            heard.diagnostics.last()
+        );
+        heard.take(lines, Duration::from_millis(100));
+    }
+}
+
+/// Reads until the last Imu on `topic` is the answer `h`.
+fn await_imu(heard: &mut Heard, lines: &mpsc::Receiver<String>, topic: &str, h: &HeadingEstimate) {
+    let stamp = serde_json::json!([
+        h.timestamp_ns / 1_000_000_000,
+        h.timestamp_ns % 1_000_000_000
+    ]);
+    let t0 = Instant::now();
+    while heard.on(topic).last().map(|m| &m["stamp"]) != Some(&stamp) {
+        assert!(
+            t0.elapsed() < WATCHDOG,
+            "watchdog: {h:?} not heard on {topic}"
+        );
+        heard.take(lines, Duration::from_millis(100));
+    }
+}
+
+#[test]
+#[ignore = "needs root, ip, and python3 with ros-rclpy ros-rmw-fastrtps-cpp ros-sensor-msgs ros-diagnostic-msgs"]
+fn a_bridge_before_ghnetd_finds_the_source_survives_a_kill_and_a_stuck_reader() {
+    const TOPIC: &str = "/ghnet/late_src/heading";
+    let ns = TestNamespace::new("ros2f");
+    let host = NetNamespace::create("ros2f").expect("network namespace");
+    host.enable_loopback_multicast().expect("multicast on lo");
+    // No ghnetd, no --source: the bridge runs, and finds the source once served.
+    let log = ns.scratch_dir("ros2f").join("bridge.log");
+    let mut bridge = spawn_bridge(
+        &ns,
+        &host,
+        &log,
+        &["--domain-id", "19", "--frame-id", FRAME_ID],
+    );
+    let (_listener, lines) = spawn_listener(
+        &host,
+        "19",
+        &[
+            "--imu",
+            TOPIC,
+            "--diagnostics",
+            "--wait-for",
+            "/diagnostics",
+        ],
+    );
+    // A reader that never reads: it must slow nobody.
+    let (_stuck, _) = spawn_listener(
+        &host,
+        "19",
+        &["--imu", TOPIC, "--stuck", "--wait-for", "/diagnostics"],
+    );
+    let mut heard = Heard::default();
+    let empty = await_diagnostics(&mut heard, &lines, "diagnostics without ghnetd", |_| true);
+    assert_eq!(empty["status"], serde_json::json!([]), "{empty}");
+
+    let daemon = Ghnetd::builder(&ns).arg("--stale-after-ms=0").start();
+    let mut feed = Feed::new(&daemon, "late-src");
+    warm_up(&mut heard, &lines, TOPIC, || {
+        feed.send(8.0, 30.0, false);
+    });
+    for _ in 0..10 {
+        feed.send(8.0, 30.0, false);
+    }
+    await_imu(&mut heard, &lines, TOPIC, feed.answers.last().unwrap());
+
+    // ghnetd dies without a word: the source goes STALE in /diagnostics.
+    daemon.kill9();
+    let stale = await_diagnostics(&mut heard, &lines, "late-src STALE after kill -9", |d| {
+        diag_of(d, "late-src").is_some_and(|s| s["level"] == 3)
+    });
+    let s = diag_of(&stale, "late-src").unwrap();
+    assert!(
+        s["message"]
+            .as_str()
+            .unwrap()
+            .contains("no message from ghnetd"),
+        "{s}"
+    );
+
+    // A new ghnetd on the same services: relayed again, nothing to do.
+    let daemon = Ghnetd::builder(&ns).arg("--stale-after-ms=0").start();
+    daemon.wait_serving(&feed.gnss);
+    for _ in 0..5 {
+        feed.send(8.0, 30.0, false);
+    }
+    await_imu(&mut heard, &lines, TOPIC, feed.answers.last().unwrap());
+    // The bridge relays what it sees from the moment it found the source: its last
+    // message is the last answer, none missed, none refused.
+    let last = (feed.seq - 1).to_string();
+    let back = await_diagnostics(&mut heard, &lines, "late-src after the restart", |d| {
+        diag_of(d, "late-src").is_some_and(|s| s["values"]["seq"] == last.as_str())
+    });
+    let s = diag_of(&back, "late-src").unwrap();
+    assert_ne!(s["level"], 3, "{s}");
+    // Samples the restarted ghnetd never saw are gaps in seq, which the bridge counts.
+    let unanswered = feed.seq as usize - feed.answers.len();
+    assert_eq!(
+        s["values"]["missed"],
+        unanswered.to_string().as_str(),
+        "{s}"
+    );
+    assert_eq!(
+        s["values"]["send_failures"], "0",
+        "the stuck reader slowed nothing: {s}"
+    );
+    check_topic(&heard, TOPIC, &feed.answers);
+
+    let status = bridge.terminate();
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert!(status.success(), "{status}: {text}");
 }

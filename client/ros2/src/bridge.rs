@@ -38,6 +38,8 @@ struct Relayed {
     state: SourceState,
     /// `send_failures` at the last tick, to log increases once a second.
     failures_logged: u64,
+    /// When ghnetd's last message for the source came.
+    last_message: Option<Instant>,
 }
 
 /// The sources of the bridge: receivers apart from the rest, because a `WaitSet`'s
@@ -72,6 +74,7 @@ impl Sources {
             id,
             state: SourceState::default(),
             failures_logged: 0,
+            last_message: None,
         });
         Ok(())
     }
@@ -113,6 +116,7 @@ fn relay(
 ) -> anyhow::Result<()> {
     rx.drain_notifications()?;
     while let Some(h) = rx.try_recv()? {
+        r.last_message = Some(Instant::now());
         let imu = r.state.to_imu(&h, frame_id);
         if let Err(e) = out.publish_imu(r.id, imu) {
             r.state.counters.send_failures += 1;
@@ -140,7 +144,9 @@ fn diagnostics(
             tracing::warn!(source = %r.name, new, total = failures, "messages not sent to ROS");
             r.failures_logged = failures;
         }
-        status.push(r.state.diagnostic(&r.name, &r.topic, rx.publisher_count()));
+        let silent = r.last_message.map(|t| t.elapsed());
+        let publishers = rx.publisher_count();
+        status.push(r.state.diagnostic(&r.name, &r.topic, publishers, silent));
     }
     DiagnosticArray {
         header: Header {
@@ -227,6 +233,11 @@ pub(crate) fn serve(
             let timeout = next_tick
                 .saturating_duration_since(Instant::now())
                 .min(STOP_CHECK);
+            if guards.is_empty() {
+                // Nothing to wait on yet (no source found): a WaitSet refuses that.
+                std::thread::sleep(timeout);
+                continue;
+            }
             fired.clear();
             wait_for_listeners(&waitset, &guards, timeout, &mut fired)
                 .map_err(|e| anyhow::anyhow!("waiting on the heading services: {e:?}"))?;

@@ -16,6 +16,8 @@
 //! every usable message fuses a stop once (every `Held` answer of a stop carries the
 //! same error). A stop ends at the first answer that is neither `Held` nor `Stale`.
 
+use std::time::Duration;
+
 use ghnet_client::{HeadingEstimate, HeadingStatus};
 
 use crate::msg::{DiagnosticStatus, Header, Imu, KeyValue, Level, Quaternion, Time, Vector3};
@@ -23,6 +25,10 @@ use crate::msg::{DiagnosticStatus, Header, Imu, KeyValue, Level, Quaternion, Tim
 /// Variance (rad²) of roll and pitch, which GNSS velocity does not observe: large
 /// enough that any filter ignores them.
 pub const UNKNOWN_VARIANCE: f64 = 1.0e6;
+
+/// Silence after which `/diagnostics` calls a source STALE even without ghnetd's
+/// `Stale` message (ghnetd sends one after 2.5 s by default, unless it died).
+pub const SILENT_AFTER: Duration = Duration::from_secs(5);
 
 /// `covariance[0]` of a quantity the message does not carry.
 pub const NO_ESTIMATE: f64 = -1.0;
@@ -113,13 +119,27 @@ impl SourceState {
 
     /// The source's `DiagnosticStatus`, named `ghnet: <source>`. `publishers` is the
     /// number of ghnetd publishers on its heading service (0: ghnetd is not serving
-    /// it, the status is STALE whatever the last answer was).
-    pub fn diagnostic(&self, source: &str, topic: &str, publishers: usize) -> DiagnosticStatus {
+    /// it); `silent` the time since ghnetd's last message (`None`: never). Either
+    /// makes the status STALE whatever the last answer was: a ghnetd that was killed
+    /// sends no `Stale` message, and its dead publisher counts until iceoryx2 cleans
+    /// it up.
+    pub fn diagnostic(
+        &self,
+        source: &str,
+        topic: &str,
+        publishers: usize,
+        silent: Option<Duration>,
+    ) -> DiagnosticStatus {
         let status = self.last.map(|h| h.heading_status());
-        let (level, message) = match (publishers, status) {
-            (0, _) => (Level::Stale, "ghnetd is not serving this source".to_owned()),
-            (_, None) => (Level::Stale, "no answer from ghnetd yet".to_owned()),
-            (_, Some(s)) => level_of(s),
+        let quiet = silent.filter(|s| *s > SILENT_AFTER);
+        let (level, message) = match (publishers, status, quiet) {
+            (0, _, _) => (Level::Stale, "ghnetd is not serving this source".to_owned()),
+            (_, None, _) => (Level::Stale, "no answer from ghnetd yet".to_owned()),
+            (_, Some(s), Some(q)) if s != Some(HeadingStatus::Stale) => (
+                Level::Stale,
+                format!("no message from ghnetd for {:.0} s", q.as_secs_f64()),
+            ),
+            (_, Some(s), _) => level_of(s),
         };
         let fmt_f32 = |v: Option<f32>| v.map_or("nan".to_owned(), |v| v.to_string());
         let c = &self.counters;
@@ -136,6 +156,10 @@ impl SourceState {
             ),
             kv("topic", topic.to_owned()),
             kv("ghnetd_publishers", publishers.to_string()),
+            kv(
+                "silent_s",
+                silent.map_or("none".into(), |d| format!("{:.1}", d.as_secs_f64())),
+            ),
         ];
         values.extend([
             kv("relayed", c.relayed.to_string()),
@@ -268,7 +292,7 @@ mod tests {
     #[test]
     fn diagnostics_follow_the_last_status() {
         let mut s = SourceState::default();
-        let d = s.diagnostic("gnss0", "/ghnet/gnss0/heading", 1);
+        let d = s.diagnostic("gnss0", "/ghnet/gnss0/heading", 1, None);
         assert_eq!(
             (d.level, d.name.as_str()),
             (Level::Stale as u8, "ghnet: gnss0")
@@ -282,14 +306,23 @@ mod tests {
         ] {
             s.to_imu(&answer(status, 10.0, 3.0), "gnss");
             assert_eq!(
-                s.diagnostic("gnss0", "t", 1).level,
+                s.diagnostic("gnss0", "t", 1, Some(Duration::ZERO)).level,
                 level as u8,
                 "{status:?}"
             );
         }
-        assert_eq!(s.diagnostic("gnss0", "t", 0).level, Level::Stale as u8);
+        assert_eq!(
+            s.diagnostic("gnss0", "t", 0, None).level,
+            Level::Stale as u8
+        );
+        s.to_imu(&answer(HeadingStatus::Ok, 10.0, 3.0), "gnss");
+        let long = Some(SILENT_AFTER + Duration::from_secs(1));
+        assert_eq!(
+            s.diagnostic("gnss0", "t", 1, long).level,
+            Level::Stale as u8
+        );
         let keys: Vec<String> = s
-            .diagnostic("gnss0", "t", 1)
+            .diagnostic("gnss0", "t", 1, None)
             .values
             .into_iter()
             .map(|kv| kv.key)

@@ -3,8 +3,10 @@ ghnet-ros2's topics and prints every message it gets as one JSON line, so the Ru
 test that starts it can check every field against ghnetd's own answers.
 
 Usage: rclpy_listener.py --imu TOPIC [--imu TOPIC ...] [--diagnostics]
+                         [--wait-for TOPIC ...] [--stuck]
 
-Prints `ready` once every topic has a publisher, then one line per message:
+Prints `ready` once every topic (or every --wait-for topic) has a publisher, then one
+line per message:
 {"topic": ..., "stamp": [sec, nanosec], "frame_id": ..., "orientation": [x, y, z, w],
  "orientation_covariance": [...9], "angular_velocity": [...3],
  "angular_velocity_covariance": [...9], "linear_acceleration": [...3],
@@ -12,7 +14,8 @@ Prints `ready` once every topic has a publisher, then one line per message:
 {"topic": "/diagnostics", "stamp": [...], "status": [{"level", "name", "message",
  "hardware_id", "values": {key: value}}]}
 Runs until killed. QoS: reliable, volatile, keep last 1000 (nothing is lost to a
-slow Python reader).
+slow Python reader). --stuck: a subscriber that never reads (it never spins after
+`ready`), to show it slows nobody.
 """
 import argparse
 import json
@@ -72,6 +75,8 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--imu", action="append", default=[])
     parser.add_argument("--diagnostics", action="store_true")
+    parser.add_argument("--wait-for", action="append", default=[])
+    parser.add_argument("--stuck", action="store_true")
     args = parser.parse_args()
     rclpy.init()
     node = rclpy.create_node("ghnet_test_listener")
@@ -84,13 +89,16 @@ def main():
     if args.diagnostics:
         node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, qos)
         topics.append("/diagnostics")
-    ready = False
+    wait_for = args.wait_for or topics
+    while not all(node.count_publishers(t) > 0 for t in wait_for):
+        time.sleep(0.05)
+    sys.stdout.write("ready\n")
+    sys.stdout.flush()
+    if args.stuck:
+        while True:
+            time.sleep(1)
     while rclpy.ok():
         rclpy.spin_once(node, timeout_sec=0.05)
-        if not ready and all(node.count_publishers(t) > 0 for t in topics):
-            sys.stdout.write("ready\n")
-            sys.stdout.flush()
-            ready = True
 
 
 if __name__ == "__main__":
