@@ -7,7 +7,8 @@ Usage: rclpy_listener.py --imu TOPIC [--imu TOPIC ...] [--diagnostics]
 
 Prints `ready` once every topic (or every --wait-for topic) has a publisher, then one
 line per message:
-{"topic": ..., "stamp": [sec, nanosec], "frame_id": ..., "orientation": [x, y, z, w],
+{"topic": ..., "received_ns": the callback's wall-clock time, "stamp": [sec, nanosec],
+ "frame_id": ..., "orientation": [x, y, z, w],
  "orientation_covariance": [...9], "angular_velocity": [...3],
  "angular_velocity_covariance": [...9], "linear_acceleration": [...3],
  "linear_acceleration_covariance": [...9]}
@@ -41,6 +42,7 @@ def on_imu(topic):
     def callback(m):
         emit({
             "topic": topic,
+            "received_ns": time.time_ns(),
             "stamp": [m.header.stamp.sec, m.header.stamp.nanosec],
             "frame_id": m.header.frame_id,
             "orientation": [m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w],
