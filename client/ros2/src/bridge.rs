@@ -221,7 +221,12 @@ pub(crate) fn serve(
                     tracing::debug!("diagnostics not sent");
                 }
                 if cfg.sources.is_empty() {
-                    let found = heading_sources(&cfg.ipc)?;
+                    // A listing that fails (a service half made or removed while
+                    // read) is tried again at the next tick.
+                    let found = heading_sources(&cfg.ipc).unwrap_or_else(|e| {
+                        tracing::warn!("{e:#}");
+                        BTreeSet::new()
+                    });
                     changed = found.iter().any(|n| !sources.contains(n));
                     if changed {
                         drop(guards);

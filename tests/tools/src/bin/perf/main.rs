@@ -13,7 +13,7 @@
 //! target/release/perf            # full run, about 2-3 min
 //! target/release/perf --quick    # about 1 min, fewer samples
 //! target/release/perf --only ros2 # the ROS 2 bridge (root, ip, python3 + ROS 2 wheels;
-//!                                 # cargo build --release -p ghnet-ros2 first)
+//!                                 # cargo build --release -p ghnet-ros2 -p ghnet-testkit first)
 //! ```
 //!
 //! `ghnetd` is taken from next to this executable (`GHNETD_BIN` or `--ghnetd`

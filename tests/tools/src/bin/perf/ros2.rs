@@ -1,5 +1,6 @@
 //! The ROS 2 bridge's cost (`--only ros2`, not part of the default run: it needs
-//! root, `ip`, `ghnet-ros2` next to this executable and python3 with the ROS 2 wheels
+//! root, `ip`, `ghnet-ros2` and the kit's `ghnet-test-publisher` next to this
+//! executable, and python3 with the ROS 2 wheels
 //! `ros-rclpy ros-rmw-fastrtps-cpp ros-sensor-msgs`).
 //!
 //! `--ros2-sources` kit publishers at 10 Hz each feed a real ghnetd; `ghnet-ros2`
