@@ -541,6 +541,7 @@ fn rmw_zenoh_wire_is_what_rosbags_reads_and_a_late_router_is_waited_for() {
             let key = v["key"].as_str().expect("key");
             assert!(key.ends_with(v["rihs01"].as_str().unwrap()), "{v}");
             assert_eq!(v["cdr_header"], "00010000", "{v}");
+            assert_eq!(v["same_bytes"], true, "rosbags writes other bytes: {v}");
             match key {
                 k if k == imu_key => imu.push(v),
                 k if k == diag_key => diag.push(v),

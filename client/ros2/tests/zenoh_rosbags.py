@@ -7,8 +7,9 @@ Usage: zenoh_rosbags.py ROUTER DOMAIN
 
 Prints `ready` once subscribed, then one JSON line per sample:
 {"key": ..., "attachment": hex, "rihs01": the hash rosbags computes for the type
- named in the key, "msg": the decoded message (Imu fields as rclpy_listener.py
- prints them, or a DiagnosticArray)}
+ named in the key, "cdr_header": the payload's first 4 bytes, "same_bytes": whether
+ rosbags encodes the decoded message to the very payload, "msg": the decoded message
+ (Imu fields as rclpy_listener.py prints them, or a DiagnosticArray)}
 and on a line `tokens` on stdin, one line {"tokens": [...]} with every liveliness token
 under @ros2_lv/DOMAIN. Exits when stdin closes.
 """
@@ -84,6 +85,9 @@ def main():
             "attachment": att.hex(),
             "rihs01": STORE.hash_rihs01(msgtype),
             "cdr_header": payload[:4].hex(),
+            # rosbags' own encoding of what it decoded: the same bytes, or the
+            # payload is not what a ROS 2 node would write.
+            "same_bytes": bytes(STORE.serialize_cdr(m, msgtype)) == payload,
             "msg": as_json(msgtype, m),
         })
 
