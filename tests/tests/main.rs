@@ -18,6 +18,9 @@
 //!   served, descriptors and shared memory running out, hostile model files, root
 //!   paths, source names and `ghnet infer` arguments.
 //! - `soak` — 100 sources × 10 Hz × 60 s through `ghnet_tools::soak`.
+//! - `ros2` — the `ghnet-ros2` bridge against real ROS 2: an rclpy node (Fast DDS) in a
+//!   network namespace checks every Imu and `/diagnostics`; rmw_zenoh's wire read by
+//!   `eclipse-zenoh` and decoded by `rosbags`.
 //! - `gnss` — every real receiver capture through the `ghnet-gnss` bridge; `fleet` —
 //!   two vehicles through a Zenoh router, one wildcard consumer, a router restart;
 //!   again with each vehicle and the router in network namespaces of their own.
@@ -41,6 +44,7 @@ mod invalid;
 mod netns;
 mod pressure;
 mod python;
+mod ros2;
 mod shutdown;
 mod soak;
 mod zenoh_acl;

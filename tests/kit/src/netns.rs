@@ -67,6 +67,14 @@ impl NetNamespace {
         Ok(ns)
     }
 
+    /// Lets multicast run on this namespace's loopback (flag `MULTICAST` on `lo`, a
+    /// route for 224.0.0.0/4 through it): DDS discovery (SPDP) is multicast, and in
+    /// a namespace of its own no packet of it leaves the namespace.
+    pub fn enable_loopback_multicast(&self) -> anyhow::Result<()> {
+        ip(&["-n", &self.name, "link", "set", "lo", "multicast", "on"])?;
+        ip(&["-n", &self.name, "route", "add", "224.0.0.0/4", "dev", "lo"])
+    }
+
     /// The namespace's name (as `ip netns` lists it).
     pub fn name(&self) -> &str {
         &self.name

@@ -12,6 +12,8 @@
 //! cargo build --release -p ghnetd -p ghnet-tools
 //! target/release/perf            # full run, about 2-3 min
 //! target/release/perf --quick    # about 1 min, fewer samples
+//! target/release/perf --only ros2 # the ROS 2 bridge (root, ip, python3 + ROS 2 wheels;
+//!                                 # cargo build --release -p ghnet-ros2 -p ghnet-testkit first)
 //! ```
 //!
 //! `ghnetd` is taken from next to this executable (`GHNETD_BIN` or `--ghnetd`
@@ -22,7 +24,8 @@
 //!
 //! - `main.rs` — arguments, the phases in order, the report.
 //! - `inference` — the model alone; `latency`, `throughput`, `footprint`, `alloc` —
-//!   one phase each, its measurement and its rows of the table.
+//!   one phase each, its measurement and its rows of the table; `ros2` — the ROS 2
+//!   bridge, only with `--only ros2`.
 //! - `target` — the processes under test (ghnetd or the echo) on the test kit.
 //! - `echo` — `perf echo`, the raw transport baseline.
 
@@ -40,6 +43,7 @@ mod echo;
 mod footprint;
 mod inference;
 mod latency;
+mod ros2;
 mod target;
 mod throughput;
 
@@ -106,6 +110,12 @@ struct Args {
     /// Model for ghnetd and the inference timing (built-in name or .safetensors).
     #[arg(long, default_value = DEFAULT_MODEL)]
     model: String,
+    /// Seconds of the ROS 2 bridge's measured window (`--only ros2`).
+    #[arg(long, default_value_t = 30.0)]
+    ros2_seconds: f64,
+    /// Sources at 10 Hz each through the ROS 2 bridge (`--only ros2`).
+    #[arg(long, default_value_t = 10)]
+    ros2_sources: usize,
     /// The ghnetd binary; default: `ghnetd` next to this executable.
     #[arg(long, env = "GHNETD_BIN", value_name = "PATH")]
     ghnetd: Option<PathBuf>,
@@ -123,6 +133,9 @@ enum Phase {
     Footprint,
     /// Allocations per sample on the daemon thread.
     Alloc,
+    /// The ROS 2 bridge: added latency, CPU, memory (only when asked for: needs root,
+    /// `ip`, `ghnet-ros2` and python3 with the ROS 2 wheels).
+    Ros2,
 }
 
 fn main() -> ExitCode {
@@ -218,7 +231,8 @@ fn run(args: &Args) -> anyhow::Result<bool> {
     let inference = inference::time(&args.model, 20_000)?;
     eprintln!("inference: {}", inference);
     let mut rows = inference.rows();
-    let want = |p: Phase| args.only.is_empty() || args.only.contains(&p);
+    // The ROS 2 phase needs root and Python: only when named.
+    let want = |p: Phase| (args.only.is_empty() && p != Phase::Ros2) || args.only.contains(&p);
     if want(Phase::Latency) {
         rows.extend(latency::rows(args, &env, &session, &endpoint, &inference)?);
     }
@@ -230,6 +244,9 @@ fn run(args: &Args) -> anyhow::Result<bool> {
     }
     if want(Phase::Alloc) {
         rows.extend(alloc::rows(args, &session, &endpoint)?);
+    }
+    if want(Phase::Ros2) {
+        rows.extend(ros2::rows(args, &env)?);
     }
     print_report(args, &rows, started.elapsed())?;
     Ok(rows.iter().all(|r| r.pass != Some(false)))

@@ -1,0 +1,118 @@
+//! The command line. The doc comments below are `ghnet-ros2 --help`.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Parser;
+use ghnet_client::{iceoryx2, IpcConfig};
+
+use crate::names::{check_domain_id, check_frame_id, TopicMap};
+use crate::{Config, Rmw};
+
+/// Publishes ghnetd's headings to ROS 2: each answer as sensor_msgs/msg/Imu on
+/// /ghnet/<source>/heading (node `ghnet`), and diagnostic_msgs/msg/DiagnosticArray
+/// on /diagnostics once a second. Source names that are not ROS names map by a
+/// fixed rule ('-' → '_', runs of '_' → one, a leading digit gets "s_").
+/// Stop with Ctrl-C (SIGINT) or SIGTERM.
+#[derive(Debug, Parser)]
+#[command(name = "ghnet-ros2", version)]
+pub struct Args {
+    /// A source to relay (repeatable). Without it, every source ghnetd serves,
+    /// found while running.
+    #[arg(long = "source", value_name = "NAME")]
+    pub sources: Vec<String>,
+
+    /// ROS domain id, 0 to 232.
+    #[arg(long, env = "ROS_DOMAIN_ID", default_value_t = 0, value_name = "N")]
+    pub domain_id: u32,
+
+    /// header.frame_id of every Imu: the antenna's tf2 frame.
+    #[arg(long, default_value = "gnss", value_name = "ID")]
+    pub frame_id: String,
+
+    /// The ROS middleware to speak: dds (rmw_fastrtps_cpp, rmw_cyclonedds_cpp) or
+    /// zenoh (rmw_zenoh_cpp, through a router).
+    #[arg(long, value_enum, default_value = "dds")]
+    pub rmw: Rmw,
+
+    /// The Zenoh router (--rmw zenoh), as rmw_zenoh's default.
+    #[arg(long, default_value = "tcp/localhost:7447", value_name = "ENDPOINT")]
+    pub zenoh_router: String,
+
+    /// Service prefix; must match ghnetd's ipc.service_prefix. The ROS topics do
+    /// not change with it.
+    #[arg(long, default_value = ghnet_client::DEFAULT_PREFIX, value_name = "PREFIX")]
+    pub service_prefix: String,
+
+    /// iceoryx2 shared-memory file prefix, for an isolated ghnetd (its
+    /// ipc.iceoryx2_global_prefix).
+    #[arg(long, value_name = "PREFIX")]
+    pub iceoryx2_global_prefix: Option<String>,
+
+    /// iceoryx2 root directory, for an isolated ghnetd (its ipc.iceoryx2_root_path).
+    #[arg(long, value_name = "DIR")]
+    pub iceoryx2_root_path: Option<PathBuf>,
+}
+
+impl Args {
+    /// The run's [`Config`]; errors name the flag at fault.
+    pub fn to_config(&self) -> anyhow::Result<Config> {
+        let mut topics = TopicMap::default();
+        for s in &self.sources {
+            ghnet_client::validate_source_name(s).context("--source")?;
+            topics.insert(s).context("--source")?;
+        }
+        check_frame_id(&self.frame_id).context("--frame-id")?;
+        Ok(Config {
+            sources: self.sources.clone(),
+            domain_id: check_domain_id(self.domain_id).context("--domain-id")?,
+            frame_id: self.frame_id.clone(),
+            rmw: self.rmw,
+            zenoh_router: self.zenoh_router.clone(),
+            ipc: self.ipc()?,
+        })
+    }
+
+    fn ipc(&self) -> anyhow::Result<IpcConfig> {
+        let ipc = IpcConfig::new(&self.service_prefix).context("--service-prefix")?;
+        if self.iceoryx2_global_prefix.is_none() && self.iceoryx2_root_path.is_none() {
+            return Ok(ipc);
+        }
+        let cfg = ghnet_client::names::iceoryx2_config(
+            iceoryx2::config::Config::global_config().clone(),
+            self.iceoryx2_global_prefix.as_deref(),
+            self.iceoryx2_root_path.clone(),
+        )
+        .context("--iceoryx2-global-prefix / --iceoryx2-root-path")?;
+        Ok(ipc.with_iceoryx2_config(cfg))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(line: &[&str]) -> anyhow::Result<Config> {
+        let mut argv = vec!["ghnet-ros2"];
+        argv.extend_from_slice(line);
+        Args::try_parse_from(argv)?.to_config()
+    }
+
+    #[test]
+    fn flags_make_a_config() {
+        let c = args(&["--source", "a", "--source", "b-1", "--domain-id", "42"]).unwrap();
+        assert_eq!(c.sources, ["a", "b-1"]);
+        assert_eq!(
+            (c.domain_id, c.frame_id.as_str(), c.rmw),
+            (42, "gnss", Rmw::Dds)
+        );
+        assert_eq!(c.zenoh_router, "tcp/localhost:7447");
+        let c = args(&["--rmw", "zenoh", "--frame-id", "gnss_antenna"]).unwrap();
+        assert!(c.sources.is_empty() && c.rmw == Rmw::Zenoh);
+        let err = |line: &[&str]| format!("{:#}", args(line).unwrap_err());
+        assert!(err(&["--domain-id", "233"]).starts_with("--domain-id: domain id 233"));
+        assert!(err(&["--frame-id", "/gnss"]).starts_with("--frame-id: frame id `/gnss`"));
+        assert!(err(&["--source", "a-b", "--source", "a_b"]).contains("both map to"));
+        assert!(err(&["--source", "a/b"]).starts_with("--source"));
+    }
+}
