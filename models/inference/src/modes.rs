@@ -674,6 +674,24 @@ fn track_motion(mp: &ModeParams, st: &mut StepState, vn: f32, ve: f32, acc: f32,
     st.motion_v = [vn, ve];
 }
 
+/// This epoch's velocity noise σ_v, noise-corrected speed, course σ (radians) and
+/// whether it moves. Released ([`StepState::released`]), the motion is real even when
+/// the noise estimate (inflated by slow driving) calls it noise: it is then measured as
+/// a platform would measure it, by the receiver's own accuracy. (The held heading is
+/// not forgotten: cars that turn as they pull away are released off its axis too, and
+/// lost more than they gained.)
+fn measured(mp: &ModeParams, st: &StepState, speed: f32, acc: f32) -> (f32, f32, f32, bool) {
+    let released = st.released();
+    let sig = sigma_v(mp, &st.vehicle, acc);
+    let (shat, r) = measurement(speed, sig);
+    if released && r >= mp.moving_r {
+        let sig = platform_sigma_v(mp, acc);
+        let (shat, r) = measurement(speed, sig);
+        return (sig, shat, r, true);
+    }
+    (sig, shat, r, r < mp.moving_r || released)
+}
+
 /// The first half of an epoch: time, noise, the rules; mutates the non-heading parts of
 /// `st` and returns the step the network corrects. `kf_sigma_v` is the tuned `kf`'s σ_v
 /// (the start convention); `acc` is sAcc or NaN.
@@ -717,20 +735,8 @@ pub fn prepare(
     }
     step.hold = false;
     update_scatter(st, vn, ve, dt);
-    let released = st.released();
-    let mut sig = sigma_v(mp, &st.vehicle, acc);
-    let (mut shat, mut r) = measurement(speed, sig);
-    if released && r >= mp.moving_r {
-        // Plain motion that the noise estimate (inflated by slow driving) calls noise:
-        // measure it as a platform would, by the receiver's own accuracy.
-        sig = platform_sigma_v(mp, acc);
-        (shat, r) = measurement(speed, sig);
-    }
+    let (sig, shat, r, moving) = measured(mp, st, speed, acc);
     let p_still = still_variance(mp, st, dt);
-    // Released: the motion is real even when the noise estimate says otherwise. (Its
-    // held heading is not forgotten: cars that turn as they pull away are released
-    // off its axis too, and lost more than they gained.)
-    let moving = r < mp.moving_r || released;
     // The gate first: a glitch must neither change the direction nor count as driving.
     step.glitch = glitch(mp, st, vn, ve, speed, sig, dt, moving, p_still, r);
     // A car whose speed is within its receiver's noise (under 3σ: 1% of a standing
