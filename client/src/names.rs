@@ -165,6 +165,22 @@ impl IpcConfig {
         Ok(Self::default().with_iceoryx2_config(cfg))
     }
 
+    /// This config with the iceoryx2 overrides a deployment was started with (a
+    /// `global.prefix` and a root path), built on the process-wide iceoryx2 config;
+    /// unchanged when both are `None`. ghnetd and the bridges all take these two
+    /// settings, so the rule for applying them lives here once.
+    pub fn with_iceoryx2_overrides(
+        self,
+        global_prefix: Option<&str>,
+        root_path: Option<PathBuf>,
+    ) -> Result<Self, NameError> {
+        if global_prefix.is_none() && root_path.is_none() {
+            return Ok(self);
+        }
+        let cfg = iceoryx2_config(Config::global_config().clone(), global_prefix, root_path)?;
+        Ok(self.with_iceoryx2_config(cfg))
+    }
+
     /// Replaces the service prefix.
     pub fn with_prefix(mut self, prefix: &str) -> Result<Self, NameError> {
         validate_prefix(prefix)?;

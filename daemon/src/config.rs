@@ -11,7 +11,6 @@ use std::time::Duration;
 
 use anyhow::{bail, Context};
 use clap::Parser;
-use ghnet_client::iceoryx2;
 use ghnet_client::{names, IpcConfig, ServiceSettings};
 use ghnet_models::Platform;
 use serde::{Deserialize, Serialize};
@@ -689,17 +688,11 @@ impl Config {
                 i.max_nodes,
                 i.subscriber_buffer,
             ));
-        if self.ipc.iceoryx2_global_prefix.is_none() && self.ipc.iceoryx2_root_path.is_none() {
-            return Ok(ipc);
-        }
-        let base = iceoryx2::config::Config::global_config().clone();
-        let cfg = names::iceoryx2_config(
-            base,
-            self.ipc.iceoryx2_global_prefix.as_deref(),
-            self.ipc.iceoryx2_root_path.clone(),
+        ipc.with_iceoryx2_overrides(
+            i.iceoryx2_global_prefix.as_deref(),
+            i.iceoryx2_root_path.clone(),
         )
-        .context("ipc.iceoryx2_global_prefix / ipc.iceoryx2_root_path")?;
-        Ok(ipc.with_iceoryx2_config(cfg))
+        .context("ipc.iceoryx2_global_prefix / ipc.iceoryx2_root_path")
     }
 
     /// The model's status thresholds.

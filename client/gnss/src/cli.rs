@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 use clap::Parser;
-use ghnet_client::{iceoryx2, IpcConfig};
+use ghnet_client::IpcConfig;
 use ghnet_receivers::Format;
 
 use crate::{Backoff, Config, Input, Output};
@@ -119,17 +119,13 @@ impl Args {
     }
 
     fn ipc(&self) -> anyhow::Result<IpcConfig> {
-        let ipc = IpcConfig::new(&self.service_prefix).context("--service-prefix")?;
-        if self.iceoryx2_global_prefix.is_none() && self.iceoryx2_root_path.is_none() {
-            return Ok(ipc);
-        }
-        let cfg = ghnet_client::names::iceoryx2_config(
-            iceoryx2::config::Config::global_config().clone(),
-            self.iceoryx2_global_prefix.as_deref(),
-            self.iceoryx2_root_path.clone(),
-        )
-        .context("--iceoryx2-global-prefix / --iceoryx2-root-path")?;
-        Ok(ipc.with_iceoryx2_config(cfg))
+        IpcConfig::new(&self.service_prefix)
+            .context("--service-prefix")?
+            .with_iceoryx2_overrides(
+                self.iceoryx2_global_prefix.as_deref(),
+                self.iceoryx2_root_path.clone(),
+            )
+            .context("--iceoryx2-global-prefix / --iceoryx2-root-path")
     }
 }
 
