@@ -1,15 +1,19 @@
 //! Runtime-dispatched SIMD for the inference hot loops: AVX-512, AVX2+FMA, portable.
 //!
 //! Binaries are built for baseline x86-64 (SSE2), so the wide paths are compiled with
-//! `#[target_feature]` and chosen at run time ([`Kernel::detect`]). Every path runs the same
-//! generic code ([`Simd`] is the only thing that differs), so they agree to within f32
-//! rounding: the AVX paths fuse multiply-adds, the portable path does not.
+//! `#[target_feature]` and chosen at run time ([`Kernel::detect`], or by name with
+//! [`KERNEL_ENV`]). The AVX paths run the same generic code ([`Simd`] is the only thing
+//! that differs); the portable path runs GELU on that code with plain-Rust lanes and the
+//! network's products on faer ([`crate::net`]). They agree to within f32 rounding: the
+//! AVX paths fuse multiply-adds, and each sums in its own order.
 //!
 //! Also here: 64-byte aligned buffers for weights and activations, and the FMA loop that
 //! measures this core's peak throughput, so benches can state their GFLOP/s as a share of
 //! a peak measured in the same run.
 
 use std::fmt;
+use std::str::FromStr;
+use std::sync::OnceLock;
 
 /// Which instruction set the inference kernels use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -18,7 +22,8 @@ pub enum Kernel {
     Avx512,
     /// 8 f32 lanes with fused multiply-add (x86-64 with AVX2 and FMA).
     Avx2Fma,
-    /// Plain Rust on groups of 4 lanes; the compiler vectorises what it can (any target).
+    /// Any target: the network's products on faer's matrix product (faer picks its own
+    /// instructions), GELU and the peak loop in plain Rust on groups of 4 lanes.
     Portable,
 }
 
@@ -26,12 +31,23 @@ impl Kernel {
     /// Every kernel, widest first.
     pub const ALL: [Kernel; 3] = [Kernel::Avx512, Kernel::Avx2Fma, Kernel::Portable];
 
-    /// The widest kernel this CPU supports.
+    /// The kernel inference runs on: the one [`KERNEL_ENV`] names if this CPU has it, else
+    /// the widest this CPU supports. Read once per process, so every network and GELU in
+    /// it agrees.
     pub fn detect() -> Self {
-        Self::ALL
-            .into_iter()
-            .find(|k| k.is_available())
-            .unwrap_or(Kernel::Portable)
+        static CHOSEN: OnceLock<Kernel> = OnceLock::new();
+        *CHOSEN.get_or_init(|| {
+            std::env::var(KERNEL_ENV)
+                .ok()
+                .and_then(|name| name.parse::<Kernel>().ok())
+                .filter(|k| k.is_available())
+                .unwrap_or_else(Self::widest)
+        })
+    }
+
+    /// The widest kernel this CPU supports.
+    pub fn widest() -> Self {
+        Self::available().next().unwrap_or(Kernel::Portable)
     }
 
     /// This kernel if this CPU can run it, else [`Kernel::Portable`]: what the
@@ -73,17 +89,40 @@ impl Kernel {
             Kernel::Portable => 4,
         }
     }
+
+    /// The kernel's name: what [`fmt::Display`] prints, [`KERNEL_ENV`] takes and the
+    /// benches call it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Kernel::Avx512 => "avx512",
+            Kernel::Avx2Fma => "avx2+fma",
+            Kernel::Portable => "portable",
+        }
+    }
 }
 
 impl fmt::Display for Kernel {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Kernel::Avx512 => "avx512",
-            Kernel::Avx2Fma => "avx2+fma",
-            Kernel::Portable => "portable",
-        })
+        f.write_str(self.as_str())
     }
 }
+
+impl FromStr for Kernel {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.as_str() == s)
+            .ok_or_else(|| format!("unknown kernel `{s}` (avx512, avx2+fma or portable)"))
+    }
+}
+
+/// Environment variable that picks the inference kernel ([`Kernel::detect`]) by name:
+/// `portable` runs every network on faer's matrix product on any CPU, as a CPU without
+/// AVX2 would, to check or bench that path; `avx2+fma` the AVX2 kernel on an AVX-512
+/// CPU. A name this CPU cannot run, or none, leaves the widest kernel.
+pub const KERNEL_ENV: &str = "GHNET_KERNEL";
 
 /// Rows of every weight matrix and activation are padded to a multiple of this (the widest
 /// vector), so kernels never need a remainder loop over channels. Padded rows have zero
