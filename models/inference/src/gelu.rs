@@ -12,9 +12,7 @@
 //! path is bit-identical to the scalar one. So a model trained with
 //! the scalar form answers the same in inference.
 
-use crate::simd::{Kernel, Simd, V4};
-#[cfg(target_arch = "x86_64")]
-use crate::simd::{V16, V8};
+use crate::simd::{on_kernel, Kernel, Simd};
 
 /// `√(2/π)`.
 const K0: f32 = 0.797_884_6;
@@ -100,18 +98,6 @@ unsafe fn gelu_slice_v<V: Simd>(xs: &mut [f32]) {
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn gelu_slice_avx512(xs: &mut [f32]) {
-    gelu_slice_v::<V16>(xs)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn gelu_slice_avx2(xs: &mut [f32]) {
-    gelu_slice_v::<V8>(xs)
-}
-
 /// GELU (tanh form) of one value.
 #[inline(always)]
 pub fn gelu(x: f32) -> f32 {
@@ -127,16 +113,7 @@ pub fn gelu_inplace(xs: &mut [f32]) {
 /// GELU in place with a given kernel (an unavailable one falls back to portable code);
 /// for benches and for tests that hold the paths against each other.
 pub fn gelu_inplace_with(kernel: Kernel, xs: &mut [f32]) {
-    let kernel = kernel.or_portable();
-    match kernel {
-        // SAFETY: the kernel is available on this CPU (`or_portable` above).
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 => unsafe { gelu_slice_avx512(xs) },
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2Fma => unsafe { gelu_slice_avx2(xs) },
-        // SAFETY: V4 is plain Rust.
-        _ => unsafe { gelu_slice_v::<V4>(xs) },
-    }
+    on_kernel!(kernel, gelu_slice_v(xs: &mut [f32]) -> ())
 }
 
 /// GELU and its derivative at `x`, for the backward pass.

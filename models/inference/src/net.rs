@@ -16,12 +16,18 @@
 //! `(rows of up to 3 vectors) × (8 or 4 samples)` in registers; the single-sample path is a
 //! matrix-vector product that splits the sum over inputs into independent chains so FMA
 //! latency does not dominate. The caller owns the scratch; nothing is allocated per call.
+//!
+//! The portable path is faer's matrix product ([`faer::linalg::matmul::matmul`]) with the
+//! bias added first and the portable GELU after, one sample at a time: faer multiplies
+//! one column with its matrix-vector kernel and several with its matrix-matrix kernels,
+//! which sum in other orders, and a sample's answer must not depend on its batch. The
+//! hand-written kernels are tested against it.
 
-use faer::{Mat, MatMut, MatRef};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 
-use crate::gelu::gelu_v;
+use crate::gelu::{gelu_inplace_with, gelu_v};
 use crate::params::{Arch, ParamSet, BN_EPS};
-use crate::simd::{padded, AlignedBuf, Kernel, Simd, V4};
+use crate::simd::{padded, AlignedBuf, Kernel, Simd};
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{V16, V8};
 
@@ -263,9 +269,14 @@ impl Network {
             Kernel::Avx512 => unsafe { run_avx512(self, n, scratch) },
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2Fma => unsafe { run_avx2(self, n, scratch) },
-            // SAFETY: V4 is plain Rust; scratch checked as above.
-            _ => unsafe { run_v::<V4, 4>(self, n, scratch) },
+            _ => run_faer(self, n, scratch),
         }
+    }
+
+    /// Whether layer `l` has GELU after it: every convolution does; the collapsed linear
+    /// head that ends a per-epoch network does not.
+    fn has_gelu(&self, l: usize) -> bool {
+        self.arch.window > 1 || l + 1 < self.layers.len()
     }
 }
 
@@ -320,22 +331,48 @@ unsafe fn run_avx2(net: &Network, n: usize, scratch: &mut Scratch) {
 unsafe fn run_v<V: Simd, const NR: usize>(net: &Network, n: usize, scratch: &mut Scratch) {
     let mut x = scratch.input.as_slice().as_ptr();
     let mut xs = net.arch.input;
-    // A temporal network's layers are all convolutions (GELU after each); a per-epoch
-    // network ends with the collapsed linear head.
-    let last = if net.arch.window > 1 {
-        usize::MAX
-    } else {
-        net.layers.len() - 1
-    };
     for (l, d) in net.layers.iter().enumerate() {
         let y = scratch.acts[l].as_mut_slice().as_mut_ptr();
-        if l < last {
+        if net.has_gelu(l) {
             dense::<V, NR, true>(d, x, xs, n, y);
         } else {
             dense::<V, NR, false>(d, x, xs, n, y);
         }
         x = y;
         xs = d.rows_padded();
+    }
+}
+
+/// Every layer on faer's product, each reading the previous one's output in `scratch`
+/// (the first `n ≤ max_batch` columns).
+fn run_faer(net: &Network, n: usize, scratch: &mut Scratch) {
+    for (l, d) in net.layers.iter().enumerate() {
+        let (done, rest) = scratch.acts.split_at_mut(l);
+        let x = done.last().unwrap_or(&scratch.input).as_slice();
+        dense_faer(d, x, n, rest[0].as_mut_slice(), net.has_gelu(l));
+    }
+}
+
+/// `Y[:, j] = act(W·X[:, j] + b)` for `j < n` on faer's product, one column at a time
+/// (see the module docs), `act` GELU (the portable kernel, bit for bit the scalar
+/// [`crate::gelu::gelu`]) or the identity. `X` is `d.k × n` and `Y` `padded(d.rows) × n`,
+/// both column-major without gaps.
+fn dense_faer(d: &Dense, x: &[f32], n: usize, y: &mut [f32], gelu: bool) {
+    let rows = d.rows_padded();
+    let w = MatRef::from_column_major_slice(d.w.as_slice(), rows, d.k);
+    for (xj, yj) in x.chunks_exact(d.k).zip(y.chunks_exact_mut(rows)).take(n) {
+        yj.copy_from_slice(d.b.as_slice());
+        faer::linalg::matmul::matmul(
+            MatMut::from_column_major_slice_mut(yj, rows, 1),
+            Accum::Add,
+            w,
+            MatRef::from_column_major_slice(xj, d.k, 1),
+            1.0,
+            Par::Seq,
+        );
+        if gelu {
+            gelu_inplace_with(Kernel::Portable, yj);
+        }
     }
 }
 
@@ -651,6 +688,104 @@ mod tests {
             }
         }
         check_against_reference(&p, 2e-5);
+    }
+
+    /// A network of the one layer `d` on `kernel`, GELU after it or not.
+    fn one_layer(d: Dense, gelu: bool, kernel: Kernel) -> Network {
+        let arch = Arch {
+            input: d.k,
+            conv: vec![d.rows],
+            fc: vec![],
+            output: d.rows,
+            window: if gelu { 2 } else { 1 },
+        };
+        Network {
+            arch,
+            kernel,
+            layers: vec![d],
+        }
+    }
+
+    /// `net`'s one layer over the `k × n` inputs `x` (column-major): its padded outputs.
+    fn run_layer(net: &Network, x: &[f32], n: usize) -> Vec<f32> {
+        let mut s = net.scratch(n);
+        s.input.as_mut_slice().copy_from_slice(x);
+        net.run(n, &mut s);
+        s.acts[0].as_slice().to_vec()
+    }
+
+    /// Each SIMD kernel this CPU has against the faer path, one layer at a time on random
+    /// weights, biases and inputs: every layer shape of the shipped models and odd ones
+    /// (padding, one- and two-vector row blocks, one input), GELU after or not, batches
+    /// of whole tiles, leftovers and a single sample.
+    ///
+    /// Tolerance: both sum the same `k + 1` terms (bias and products), in other orders
+    /// and fused or not, so each lies within `(k+1)·ε·S` of the exact sum, `S = |b| +
+    /// Σ|w·x|`, and they within twice that of each other; GELU's slope is under 1.13 and
+    /// the vector GELU within `5e-7·(1 + |z|)` of the scalar one (`gelu` tests).
+    #[test]
+    fn every_simd_kernel_matches_faer_per_layer() {
+        use rand::{Rng, SeedableRng};
+        let mut shapes: Vec<(usize, usize)> = ["ghnet-epoch", "ghnet-temporal"]
+            .iter()
+            .flat_map(|name| {
+                let model = crate::Model::builtin(name).expect("embedded model");
+                let net = model.network().expect("network").clone();
+                net.layers.iter().map(|d| (d.rows, d.k)).collect::<Vec<_>>()
+            })
+            .collect();
+        shapes.extend([
+            (1, 2),
+            (5, 3),
+            (17, 5),
+            (33, 17),
+            (40, 33),
+            (2, 48),
+            (100, 1),
+        ]);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for kernel in [Kernel::Avx512, Kernel::Avx2Fma] {
+            if !kernel.is_available() {
+                eprintln!("skipped: this CPU has no {kernel} kernel");
+                continue;
+            }
+            eprintln!(
+                "checking {kernel} against faer on {} layer shapes",
+                shapes.len()
+            );
+            for &(rows, k) in &shapes {
+                let w = Mat::from_fn(rows, k, |_, _| rng.random_range(-1.0f32..1.0));
+                let b: Vec<f32> = (0..rows).map(|_| rng.random_range(-1.0..1.0)).collect();
+                for (n, gelu) in [(1, true), (3, false), (8, true), (21, true), (21, false)] {
+                    let x: Vec<f32> = (0..k * n).map(|_| rng.random_range(-2.0..2.0)).collect();
+                    let layer = || Dense::new(w.as_ref(), &b, k);
+                    let want = run_layer(&one_layer(layer(), gelu, Kernel::Portable), &x, n);
+                    let got = run_layer(&one_layer(layer(), gelu, kernel), &x, n);
+                    let rp = padded(rows);
+                    for j in 0..n {
+                        for i in 0..rows {
+                            let s = (b[i].abs()
+                                + (0..k)
+                                    .map(|c| (w[(i, c)] * x[j * k + c]).abs())
+                                    .sum::<f32>()) as f64;
+                            let (g, f) = (got[j * rp + i] as f64, want[j * rp + i] as f64);
+                            let sum = 2.0 * (k + 1) as f64 * f32::EPSILON as f64 * s;
+                            // |z| ≤ S bounds the pre-activation the GELU saw.
+                            let tol = if gelu {
+                                1.13 * sum + 5e-7 * (1.0 + s)
+                            } else {
+                                sum
+                            };
+                            assert!(
+                                (g - f).abs() <= tol,
+                                "{kernel} {rows}×{k} n={n} gelu={gelu} [{i},{j}]: {g} vs faer {f}"
+                            );
+                        }
+                        assert!(got[j * rp + rows..(j + 1) * rp].iter().all(|&v| v == 0.0));
+                    }
+                }
+            }
+        }
     }
 
     #[test]

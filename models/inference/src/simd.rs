@@ -1,15 +1,19 @@
 //! Runtime-dispatched SIMD for the inference hot loops: AVX-512, AVX2+FMA, portable.
 //!
 //! Binaries are built for baseline x86-64 (SSE2), so the wide paths are compiled with
-//! `#[target_feature]` and chosen at run time ([`Kernel::detect`]). Every path runs the same
-//! generic code ([`Simd`] is the only thing that differs), so they agree to within f32
-//! rounding: the AVX paths fuse multiply-adds, the portable path does not.
+//! `#[target_feature]` and chosen at run time ([`Kernel::detect`], or by name with
+//! [`KERNEL_ENV`]). The AVX paths run the same generic code ([`Simd`] is the only thing
+//! that differs); the portable path runs GELU on that code with plain-Rust lanes and the
+//! network's products on faer ([`crate::net`]). They agree to within f32 rounding: the
+//! AVX paths fuse multiply-adds, and each sums in its own order.
 //!
 //! Also here: 64-byte aligned buffers for weights and activations, and the FMA loop that
 //! measures this core's peak throughput, so benches can state their GFLOP/s as a share of
 //! a peak measured in the same run.
 
 use std::fmt;
+use std::str::FromStr;
+use std::sync::OnceLock;
 
 /// Which instruction set the inference kernels use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -18,7 +22,8 @@ pub enum Kernel {
     Avx512,
     /// 8 f32 lanes with fused multiply-add (x86-64 with AVX2 and FMA).
     Avx2Fma,
-    /// Plain Rust on groups of 4 lanes; the compiler vectorises what it can (any target).
+    /// Any target: the network's products on faer's matrix product (faer picks its own
+    /// instructions), GELU and the peak loop in plain Rust on groups of 4 lanes.
     Portable,
 }
 
@@ -26,12 +31,23 @@ impl Kernel {
     /// Every kernel, widest first.
     pub const ALL: [Kernel; 3] = [Kernel::Avx512, Kernel::Avx2Fma, Kernel::Portable];
 
-    /// The widest kernel this CPU supports.
+    /// The kernel inference runs on: the one [`KERNEL_ENV`] names if this CPU has it, else
+    /// the widest this CPU supports. Read once per process, so every network and GELU in
+    /// it agrees.
     pub fn detect() -> Self {
-        Self::ALL
-            .into_iter()
-            .find(|k| k.is_available())
-            .unwrap_or(Kernel::Portable)
+        static CHOSEN: OnceLock<Kernel> = OnceLock::new();
+        *CHOSEN.get_or_init(|| {
+            std::env::var(KERNEL_ENV)
+                .ok()
+                .and_then(|name| name.parse::<Kernel>().ok())
+                .filter(|k| k.is_available())
+                .unwrap_or_else(Self::widest)
+        })
+    }
+
+    /// The widest kernel this CPU supports.
+    pub fn widest() -> Self {
+        Self::available().next().unwrap_or(Kernel::Portable)
     }
 
     /// This kernel if this CPU can run it, else [`Kernel::Portable`]: what the
@@ -73,17 +89,40 @@ impl Kernel {
             Kernel::Portable => 4,
         }
     }
+
+    /// The kernel's name: what [`fmt::Display`] prints, [`KERNEL_ENV`] takes and the
+    /// benches call it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Kernel::Avx512 => "avx512",
+            Kernel::Avx2Fma => "avx2+fma",
+            Kernel::Portable => "portable",
+        }
+    }
 }
 
 impl fmt::Display for Kernel {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Kernel::Avx512 => "avx512",
-            Kernel::Avx2Fma => "avx2+fma",
-            Kernel::Portable => "portable",
-        })
+        f.write_str(self.as_str())
     }
 }
+
+impl FromStr for Kernel {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.as_str() == s)
+            .ok_or_else(|| format!("unknown kernel `{s}` (avx512, avx2+fma or portable)"))
+    }
+}
+
+/// Environment variable that picks the inference kernel ([`Kernel::detect`]) by name:
+/// `portable` runs every network on faer's matrix product on any CPU, as a CPU without
+/// AVX2 would, to check or bench that path; `avx2+fma` the AVX2 kernel on an AVX-512
+/// CPU. A name this CPU cannot run, or none, leaves the widest kernel.
+pub const KERNEL_ENV: &str = "GHNET_KERNEL";
 
 /// Rows of every weight matrix and activation are padded to a multiple of this (the widest
 /// vector), so kernels never need a remainder loop over channels. Padded rows have zero
@@ -170,55 +209,68 @@ mod x86 {
     use super::Simd;
     use std::arch::x86_64::*;
 
+    /// The [`Simd`] methods both widths share but for the intrinsics' names (AVX-512F
+    /// and AVX2+FMA name the same operations `_mm512_*` and `_mm256_*`), given in the
+    /// order of the rule below: `set1`, `loadu`, `storeu`, `add`, `sub`, `mul`, `div`,
+    /// `min`, `fmadd`, `fnmadd`, the reciprocal estimate, `cvtps_epi32`, `add_epi32`,
+    /// `set1_epi32`, `slli_epi32` and the cast to f32 lanes. `abs`, `copysign` and
+    /// `mul_pow2i` differ in more than names and stay with each type.
+    macro_rules! shared_ops {
+        (@binary $($op:ident $intr:ident),*) => {
+            $(
+                #[inline(always)]
+                unsafe fn $op(self, o: Self) -> Self {
+                    Self($intr(self.0, o.0))
+                }
+            )*
+        };
+        ($set1:ident, $loadu:ident, $storeu:ident, $add:ident, $sub:ident, $mul:ident,
+         $div:ident, $min:ident, $fmadd:ident, $fnmadd:ident, $rcp:ident, $cvt:ident,
+         $addi:ident, $set1i:ident, $slli:ident, $cast:ident) => {
+            #[inline(always)]
+            unsafe fn splat(v: f32) -> Self {
+                Self($set1(v))
+            }
+            #[inline(always)]
+            unsafe fn load(p: *const f32) -> Self {
+                Self($loadu(p))
+            }
+            #[inline(always)]
+            unsafe fn store(self, p: *mut f32) {
+                $storeu(p, self.0)
+            }
+            shared_ops!(@binary add $add, sub $sub, mul $mul, div $div, min $min);
+            #[inline(always)]
+            unsafe fn mul_add(self, b: Self, c: Self) -> Self {
+                Self($fmadd(self.0, b.0, c.0))
+            }
+            #[inline(always)]
+            unsafe fn div_fast(self, o: Self) -> Self {
+                // The reciprocal estimate (rcp14: relative error < 2^-14; rcp: < 1.5·2^-12)
+                // refined by one Newton step, which squares its error.
+                let r = $rcp(o.0);
+                let e = $fnmadd(o.0, r, $set1(1.0));
+                self.mul(Self($fmadd(r, e, r)))
+            }
+            #[inline(always)]
+            unsafe fn pow2i(k: Self) -> Self {
+                let e = $addi($cvt(k.0), $set1i(127));
+                Self($cast($slli::<23>(e)))
+            }
+        };
+    }
+
     /// AVX-512F: 16 lanes.
     #[derive(Clone, Copy)]
     pub(crate) struct V16(__m512);
 
     impl Simd for V16 {
         const LANES: usize = 16;
-        #[inline(always)]
-        unsafe fn splat(v: f32) -> Self {
-            V16(_mm512_set1_ps(v))
-        }
-        #[inline(always)]
-        unsafe fn load(p: *const f32) -> Self {
-            V16(_mm512_loadu_ps(p))
-        }
-        #[inline(always)]
-        unsafe fn store(self, p: *mut f32) {
-            _mm512_storeu_ps(p, self.0)
-        }
-        #[inline(always)]
-        unsafe fn add(self, o: Self) -> Self {
-            V16(_mm512_add_ps(self.0, o.0))
-        }
-        #[inline(always)]
-        unsafe fn sub(self, o: Self) -> Self {
-            V16(_mm512_sub_ps(self.0, o.0))
-        }
-        #[inline(always)]
-        unsafe fn mul(self, o: Self) -> Self {
-            V16(_mm512_mul_ps(self.0, o.0))
-        }
-        #[inline(always)]
-        unsafe fn div(self, o: Self) -> Self {
-            V16(_mm512_div_ps(self.0, o.0))
-        }
-        #[inline(always)]
-        unsafe fn div_fast(self, o: Self) -> Self {
-            // rcp14: relative error < 2^-14; one Newton step squares it.
-            let r = _mm512_rcp14_ps(o.0);
-            let e = _mm512_fnmadd_ps(o.0, r, _mm512_set1_ps(1.0));
-            let r = _mm512_fmadd_ps(r, e, r);
-            V16(_mm512_mul_ps(self.0, r))
-        }
-        #[inline(always)]
-        unsafe fn min(self, o: Self) -> Self {
-            V16(_mm512_min_ps(self.0, o.0))
-        }
-        #[inline(always)]
-        unsafe fn mul_add(self, b: Self, c: Self) -> Self {
-            V16(_mm512_fmadd_ps(self.0, b.0, c.0))
+        shared_ops! {
+            _mm512_set1_ps, _mm512_loadu_ps, _mm512_storeu_ps, _mm512_add_ps, _mm512_sub_ps,
+            _mm512_mul_ps, _mm512_div_ps, _mm512_min_ps, _mm512_fmadd_ps, _mm512_fnmadd_ps,
+            _mm512_rcp14_ps, _mm512_cvtps_epi32, _mm512_add_epi32, _mm512_set1_epi32,
+            _mm512_slli_epi32, _mm512_castsi512_ps
         }
         #[inline(always)]
         unsafe fn abs(self) -> Self {
@@ -236,11 +288,6 @@ mod x86 {
             )))
         }
         #[inline(always)]
-        unsafe fn pow2i(k: Self) -> Self {
-            let e = _mm512_add_epi32(_mm512_cvtps_epi32(k.0), _mm512_set1_epi32(127));
-            V16(_mm512_castsi512_ps(_mm512_slli_epi32::<23>(e)))
-        }
-        #[inline(always)]
         unsafe fn mul_pow2i(self, k: Self) -> Self {
             // vscalefps: one instruction instead of convert, add, shift, multiply.
             V16(_mm512_scalef_ps(self.0, k.0))
@@ -253,49 +300,11 @@ mod x86 {
 
     impl Simd for V8 {
         const LANES: usize = 8;
-        #[inline(always)]
-        unsafe fn splat(v: f32) -> Self {
-            V8(_mm256_set1_ps(v))
-        }
-        #[inline(always)]
-        unsafe fn load(p: *const f32) -> Self {
-            V8(_mm256_loadu_ps(p))
-        }
-        #[inline(always)]
-        unsafe fn store(self, p: *mut f32) {
-            _mm256_storeu_ps(p, self.0)
-        }
-        #[inline(always)]
-        unsafe fn add(self, o: Self) -> Self {
-            V8(_mm256_add_ps(self.0, o.0))
-        }
-        #[inline(always)]
-        unsafe fn sub(self, o: Self) -> Self {
-            V8(_mm256_sub_ps(self.0, o.0))
-        }
-        #[inline(always)]
-        unsafe fn mul(self, o: Self) -> Self {
-            V8(_mm256_mul_ps(self.0, o.0))
-        }
-        #[inline(always)]
-        unsafe fn div(self, o: Self) -> Self {
-            V8(_mm256_div_ps(self.0, o.0))
-        }
-        #[inline(always)]
-        unsafe fn div_fast(self, o: Self) -> Self {
-            // rcp: relative error < 1.5·2^-12; one Newton step squares it.
-            let r = _mm256_rcp_ps(o.0);
-            let e = _mm256_fnmadd_ps(o.0, r, _mm256_set1_ps(1.0));
-            let r = _mm256_fmadd_ps(r, e, r);
-            V8(_mm256_mul_ps(self.0, r))
-        }
-        #[inline(always)]
-        unsafe fn min(self, o: Self) -> Self {
-            V8(_mm256_min_ps(self.0, o.0))
-        }
-        #[inline(always)]
-        unsafe fn mul_add(self, b: Self, c: Self) -> Self {
-            V8(_mm256_fmadd_ps(self.0, b.0, c.0))
+        shared_ops! {
+            _mm256_set1_ps, _mm256_loadu_ps, _mm256_storeu_ps, _mm256_add_ps, _mm256_sub_ps,
+            _mm256_mul_ps, _mm256_div_ps, _mm256_min_ps, _mm256_fmadd_ps, _mm256_fnmadd_ps,
+            _mm256_rcp_ps, _mm256_cvtps_epi32, _mm256_add_epi32, _mm256_set1_epi32,
+            _mm256_slli_epi32, _mm256_castsi256_ps
         }
         #[inline(always)]
         unsafe fn abs(self) -> Self {
@@ -308,11 +317,6 @@ mod x86 {
                 _mm256_andnot_ps(m, self.0),
                 _mm256_and_ps(m, sign.0),
             ))
-        }
-        #[inline(always)]
-        unsafe fn pow2i(k: Self) -> Self {
-            let e = _mm256_add_epi32(_mm256_cvtps_epi32(k.0), _mm256_set1_epi32(127));
-            V8(_mm256_castsi256_ps(_mm256_slli_epi32::<23>(e)))
         }
     }
 }
@@ -392,6 +396,35 @@ impl Simd for V4 {
     }
 }
 
+/// Runs the generic `f::<V>(args)` on the vector type of `kernel` (portable vectors when
+/// this CPU lacks it), called from a function compiled with that kernel's target features
+/// so that the [`Simd`] methods inline to its instructions:
+/// `on_kernel!(kernel, f(arg: Type, ...) -> Ret)`, each `arg` a variable in scope.
+macro_rules! on_kernel {
+    ($kernel:expr, $f:ident($($arg:ident: $ty:ty),*) -> $ret:ty) => {{
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx512f")]
+        unsafe fn avx512($($arg: $ty),*) -> $ret {
+            $f::<$crate::simd::V16>($($arg),*)
+        }
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn avx2($($arg: $ty),*) -> $ret {
+            $f::<$crate::simd::V8>($($arg),*)
+        }
+        match $kernel.or_portable() {
+            // SAFETY: the kernel is available on this CPU (`or_portable`).
+            #[cfg(target_arch = "x86_64")]
+            $crate::simd::Kernel::Avx512 => unsafe { avx512($($arg),*) },
+            #[cfg(target_arch = "x86_64")]
+            $crate::simd::Kernel::Avx2Fma => unsafe { avx2($($arg),*) },
+            // SAFETY: V4 is plain Rust.
+            _ => unsafe { $f::<$crate::simd::V4>($($arg),*) },
+        }
+    }};
+}
+pub(crate) use on_kernel;
+
 /// Independent FMA chains in the peak loop: enough to cover FMA latency (4 cycles) times
 /// the FMA ports (2) on current x86 cores, and few enough to stay in registers.
 const PEAK_CHAINS: usize = 12;
@@ -402,34 +435,13 @@ const PEAK_CHAINS: usize = 12;
 /// This is the reference for "share of peak": a loop that does nothing but fused
 /// multiply-adds from registers. Count its work with [`peak_loop_flops`].
 pub fn peak_fma_loop(kernel: Kernel, iters: u64) -> f32 {
-    let kernel = kernel.or_portable();
-    match kernel {
-        // SAFETY: the kernel is available on this CPU (`or_portable` above).
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 => unsafe { peak_avx512(iters) },
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2Fma => unsafe { peak_avx2(iters) },
-        // SAFETY: V4 is plain Rust.
-        _ => unsafe { peak_generic::<V4>(iters) },
-    }
+    on_kernel!(kernel, peak_generic(iters: u64) -> f32)
 }
 
 /// Floating-point operations done by [`peak_fma_loop`]: 2 per lane per FMA.
 pub fn peak_loop_flops(kernel: Kernel, iters: u64) -> u64 {
     let kernel = kernel.or_portable();
     iters * PEAK_CHAINS as u64 * kernel.lanes() as u64 * 2
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn peak_avx512(iters: u64) -> f32 {
-    peak_generic::<V16>(iters)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn peak_avx2(iters: u64) -> f32 {
-    peak_generic::<V8>(iters)
 }
 
 #[inline(always)]

@@ -1,0 +1,128 @@
+//! The second half of an epoch: the network's gain, reverse and σ corrections applied
+//! to the step, the heading, the yaw rate and the clocks updated.
+
+use super::state::{Step, StepState};
+use crate::head::{wrap_rad, MAX_STD_DEG};
+
+/// Logit the rule's reverse decision contributes (`+` reversing, `−` forward): the
+/// network overrides the rule only when its own logit outweighs this.
+pub const REVERSE_PRIOR: f32 = 4.0;
+
+/// Time constant of the yaw rate's smoothing, s ([`StepState::yaw`]): long enough
+/// that a 10 Hz receiver's course noise does not read as turning, short enough to
+/// follow a junction turn (a few seconds).
+pub const YAW_TAU_S: f32 = 1.0;
+
+/// The gain from the Kalman gain `k` and the network's log-odds correction `y`:
+/// `k·eʸ / (1 − k + k·eʸ)`; exactly 0 when `k` is 0 (a stop stays held) and `k` at `y = 0`.
+#[inline]
+pub fn corrected_gain(k: f32, y: f32) -> f32 {
+    if k <= 0.0 {
+        return 0.0;
+    }
+    let e = y.clamp(-30.0, 30.0).exp();
+    k * e / (1.0 - k + k * e)
+}
+
+/// The reverse logit: the rule's `±REVERSE_PRIOR` plus the network's `y`.
+#[inline]
+pub fn reverse_logit(rule_reverse: bool, y: f32) -> f32 {
+    if rule_reverse {
+        REVERSE_PRIOR + y
+    } else {
+        y - REVERSE_PRIOR
+    }
+}
+
+/// What [`commit`] decided.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decision {
+    /// Heading, radians (not wrapped).
+    pub psi: f32,
+    /// The filter's `log σ` after the step (σ in radians).
+    pub log_sigma: f32,
+    /// Gain used (1 after a jump).
+    pub gain: f32,
+}
+
+/// The second half of an epoch: the network's outputs `y` (gain, reverse, σ) applied to
+/// `step`, the heading state of `st` updated. Zero outputs are the mode filter itself.
+pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
+    let cap = MAX_STD_DEG.to_radians();
+    let logit = reverse_logit(step.rule_reverse, y[1]);
+    let (psi, var, gain) = if step.hold {
+        (step.prior, cap * cap, 0.0)
+    } else {
+        let reverse = logit > 0.0;
+        let z = step.course + if reverse { std::f32::consts::PI } else { 0.0 };
+        let d = wrap_rad(z - step.prior);
+        st.t_mode = if reverse != st.reverse {
+            0.0
+        } else {
+            st.t_mode
+        };
+        st.reverse = reverse;
+        // Overruling the rule never averages across a half turn: the heading jumps.
+        if reverse != step.rule_reverse
+            && step.moving
+            && !step.glitch
+            && d.abs() > 0.5 * std::f32::consts::PI
+        {
+            (z, step.r2, 1.0)
+        } else {
+            let g = corrected_gain(step.k, y[0]);
+            let v = (1.0 - g) * (1.0 - g) * step.p + g * g * step.r2;
+            (step.prior + g * d, v, g)
+        }
+    };
+    let log_sigma = 0.5 * var.max(1e-12).ln();
+    update_yaw(st, step, psi, gain, dt);
+    advance_clocks(st, step, dt);
+    st.psi = wrap_rad(psi);
+    st.log_sigma = log_sigma.min(cap.ln());
+    st.has_prior = true;
+    Decision {
+        psi,
+        log_sigma: st.log_sigma,
+        gain,
+    }
+}
+
+/// The yaw rate after a step to heading `psi` with gain `gain` (1 after a jump): the
+/// heading's change since the step's prior (the rules' half turns are already in the
+/// prior), smoothed; a jump across a half turn is a misread direction, not a turn,
+/// and leaves it as it was; a glitch too; anything else not moving ends it.
+fn update_yaw(st: &mut StepState, step: &Step, psi: f32, gain: f32, dt: f32) {
+    if step.glitch || (gain >= 1.0 && step.moving) {
+        return;
+    }
+    if !step.moving || step.hold || dt <= 0.0 {
+        st.yaw = 0.0;
+        return;
+    }
+    let rate = wrap_rad(psi - step.prior) / dt;
+    st.yaw += (dt / YAW_TAU_S).min(1.0) * (rate - st.yaw);
+}
+
+fn advance_clocks(st: &mut StepState, step: &Step, dt: f32) {
+    // A glitch changes nothing: a standing vehicle stays standing through one, a moving
+    // one moving (at speed, the gate's `max_skips` rule applies, not a stand's).
+    let moved = step.moving && !step.glitch;
+    st.t_still = if (step.glitch && st.moving_now()) || moved {
+        0.0
+    } else {
+        st.t_still + dt
+    };
+    if moved && !step.hold {
+        st.t_mode += dt;
+    }
+    if !step.glitch {
+        st.prev_speed = step.speed;
+    }
+    // Every used epoch is the gate's reference, a standing car's noise included: it
+    // leaves rest from rest, not from the speed it stopped at.
+    if !step.glitch || !st.prev_v[0].is_finite() {
+        let (s, c) = step.course.sin_cos();
+        st.prev_v = [step.speed * c, step.speed * s];
+    }
+}

@@ -1,0 +1,107 @@
+//! Noise on both sides of the filter: the receiver's velocity σ and the course σ it
+//! gives at a speed (the measurement), and the heading's random walk and steering
+//! noise (the prior).
+
+use super::params::ModeParams;
+use super::state::StepState;
+use super::vehicle::Vehicle;
+use crate::head::MAX_STD_DEG;
+
+pub(super) fn cap2() -> f32 {
+    let c = MAX_STD_DEG.to_radians();
+    c * c
+}
+
+/// Speed corrected for noise (`√(|v|² − 2σ²)`, 0 inside the noise) and the course's σ
+/// `σ/ŝ` capped at the uniform σ.
+pub(super) fn measurement(speed: f32, sigma: f32) -> (f32, f32) {
+    let cap = MAX_STD_DEG.to_radians();
+    let s2 = speed * speed - 2.0 * sigma * sigma;
+    if s2 > 0.0 {
+        let shat = s2.sqrt();
+        (shat, (sigma / shat).min(cap))
+    } else {
+        (0.0, cap)
+    }
+}
+
+/// Track the low quantile of slow speeds (a stopped receiver's noise).
+pub(super) fn update_noise(mp: &ModeParams, v: &mut Vehicle, speed: f32, acc: f32) {
+    if !v.noise.is_finite() {
+        let init = if acc.is_finite() { acc } else { 0.1 };
+        v.noise = init * mp.quantile_factor();
+    }
+    if speed < mp.noise_speed {
+        let below = if speed < v.noise { 1.0 } else { 0.0 };
+        let tau = mp.noise_quantile;
+        v.noise *= (mp.noise_rate * (tau - below) / tau.max(1.0 - tau)).exp();
+    }
+}
+
+/// The velocity noise σ (m/s) of this epoch.
+fn sigma_v(mp: &ModeParams, v: &Vehicle, acc: f32) -> f32 {
+    let known = acc.is_finite();
+    if !v.car {
+        return platform_sigma_v(mp, acc);
+    }
+    let est = mp.noise_k * v.noise / mp.quantile_factor();
+    let rep = if known { mp.acc_k * acc } else { mp.sigma_none };
+    est.max(rep).max(mp.sigma_floor)
+}
+
+/// A platform's velocity noise σ (m/s): its receiver's accuracy, or `tip_sigma_none`.
+fn platform_sigma_v(mp: &ModeParams, acc: f32) -> f32 {
+    if acc.is_finite() {
+        (mp.tip_acc_k * acc).max(mp.sigma_floor)
+    } else {
+        mp.tip_sigma_none
+    }
+}
+
+/// This epoch's velocity noise σ_v, noise-corrected speed, course σ (radians) and
+/// whether it moves. Released ([`StepState::released`]), the motion is real even when
+/// the noise estimate (inflated by slow driving) calls it noise: it is then measured as
+/// a platform would measure it, by the receiver's own accuracy. (The held heading is
+/// not forgotten: cars that turn as they pull away are released off its axis too, and
+/// lost more than they gained.)
+pub(super) fn measured(
+    mp: &ModeParams,
+    st: &StepState,
+    speed: f32,
+    acc: f32,
+) -> (f32, f32, f32, bool) {
+    let released = st.released();
+    let sig = sigma_v(mp, &st.vehicle, acc);
+    let (shat, r) = measurement(speed, sig);
+    if released && r >= mp.moving_r {
+        let sig = platform_sigma_v(mp, acc);
+        let (shat, r) = measurement(speed, sig);
+        return (sig, shat, r, true);
+    }
+    (sig, shat, r, r < mp.moving_r || released)
+}
+
+/// The prior variance (radians²) of a standing step from `st` after `dt`: the class's
+/// random walk (a car's is small: cars do not turn in place).
+pub(super) fn still_variance(mp: &ModeParams, st: &StepState, dt: f32) -> f32 {
+    let q = if st.vehicle.car {
+        mp.q_still_deg
+    } else {
+        mp.q_tip_deg
+    }
+    .to_radians();
+    random_walk_variance(st.log_sigma, q, dt)
+}
+
+/// The prior variance (radians², capped at the uniform one) of a heading with `log σ`
+/// `log_sigma` after a random walk of `q` rad/√s for `dt`: the mode filter's and `kf`'s.
+pub(crate) fn random_walk_variance(log_sigma: f32, q: f32, dt: f32) -> f32 {
+    ((2.0 * log_sigma).exp() + q * q * dt).min(cap2())
+}
+
+/// `p_still` plus the steering noise of the distance driven at speed `shat` over `dt`
+/// (path curvature `k_max` when slow, lateral acceleration `a_lat` at speed).
+pub(super) fn driving_variance(mp: &ModeParams, p_still: f32, shat: f32, dt: f32) -> f32 {
+    let w = mp.k_max * shat.min(mp.a_lat / (mp.k_max * shat.max(1e-3)));
+    (p_still + w * w * dt).min(cap2())
+}

@@ -1,0 +1,129 @@
+//! The first half of an epoch: time, noise, the glitch gate and the direction rules,
+//! ending in the step the network corrects.
+
+use super::noise::{cap2, driving_variance, measured, measurement, still_variance, update_noise};
+use super::params::ModeParams;
+use super::release::{glitch, track_motion};
+use super::scatter::update_scatter;
+use super::state::{Step, StepState};
+use super::vehicle::{Platform, FAST_EPOCHS};
+use crate::head::{wrap_rad, MAX_STD_DEG};
+
+/// The first half of an epoch: time, noise, the rules; mutates the non-heading parts of
+/// `st` and returns the step the network corrects. `kf_sigma_v` is the tuned `kf`'s σ_v
+/// (the start convention); `acc` is sAcc or NaN.
+pub fn prepare(
+    mp: &ModeParams,
+    kf_sigma_v: f32,
+    st: &mut StepState,
+    vn: f32,
+    ve: f32,
+    acc: f32,
+    dt: f32,
+) -> Step {
+    let speed = vn.hypot(ve);
+    let course = ve.atan2(vn);
+    update_noise(mp, &mut st.vehicle, speed, acc);
+    track_motion(mp, st, vn, ve, acc, dt);
+    let cap2 = cap2();
+    let mut step = Step {
+        course,
+        prior: if st.has_prior { st.psi } else { course },
+        p: cap2,
+        r2: cap2,
+        k: 0.0,
+        rule_reverse: false,
+        moving: false,
+        hold: true,
+        glitch: false,
+        sigma_v: f32::NAN,
+        speed,
+        has_acc: acc.is_finite(),
+    };
+    if !st.has_prior {
+        return step;
+    }
+    if !st.moved {
+        let (_, r) = measurement(speed, kf_sigma_v);
+        if r >= MAX_STD_DEG.to_radians() {
+            return step;
+        }
+        st.moved = true;
+    }
+    step.hold = false;
+    update_scatter(st, vn, ve, dt);
+    let (sig, shat, r, moving) = measured(mp, st, speed, acc);
+    let p_still = still_variance(mp, st, dt);
+    // The gate first: a glitch must neither change the direction nor count as driving.
+    step.glitch = glitch(mp, st, vn, ve, speed, sig, dt, moving, p_still, r);
+    // A car whose speed is within its receiver's noise (under 3σ: 1% of a standing
+    // receiver's epochs, 37% under the `√2σ` that `measurement` uses) is taken to stand.
+    let car_at_rest = st.vehicle.car && !moving && speed < 3.0 * sig;
+    // Steering turns the heading with distance driven: not over a glitch, nor over a
+    // car at rest (its noise speed is no distance).
+    let p = if !step.glitch && !car_at_rest {
+        driving_variance(mp, p_still, shat, dt)
+    } else {
+        p_still
+    };
+    if moving && !step.glitch {
+        direction_rules(mp, st, course, speed, p, dt);
+    }
+    if speed <= mp.fast_speed {
+        // "Continuously fast" ends at any slow epoch, moving or not: a platform's three
+        // glitches, a stand, then two more made it a car.
+        (st.t_fast, st.n_fast) = (0.0, 0);
+    }
+    step.prior = st.psi;
+    step.p = p;
+    step.r2 = r * r;
+    // A car at rest has no course: feeding its noise in turned held headings. (A slow
+    // car above the noise still feeds, with the small gain its σ gives.)
+    step.k = if step.glitch || car_at_rest || step.r2 >= cap2 * 0.999 {
+        0.0
+    } else {
+        p / (p + step.r2)
+    };
+    step.rule_reverse = st.reverse;
+    step.moving = moving;
+    step.sigma_v = sig;
+    step
+}
+
+/// The direction rules on a moving epoch: a car's departure against a sure heading
+/// changes its mode, sustained speed ends a reversal (the heading was wrong by 180°) and
+/// makes the vehicle a car.
+fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32, p: f32, dt: f32) {
+    let pi = std::f32::consts::PI;
+    let z = course + if st.reverse { pi } else { 0.0 };
+    let d = wrap_rad(z - st.psi);
+    let sure = p < mp.confident_deg.to_radians().powi(2);
+    let limit = if st.t_still > 0.0 {
+        mp.flip_stop_deg
+    } else {
+        mp.flip_deg
+    };
+    if sure && st.vehicle.car && d.cos() < limit.to_radians().cos() && speed < mp.flip_speed {
+        st.reverse = !st.reverse;
+        st.t_mode = 0.0;
+    }
+    let fast = speed > mp.escape_speed && st.prev_speed > 0.7 * mp.escape_speed && dt <= 2.0;
+    (st.t_fast, st.n_fast) = if speed > mp.fast_speed {
+        (st.t_fast + dt, st.n_fast.saturating_add(1))
+    } else {
+        (0.0, 0)
+    };
+    if fast && st.reverse {
+        st.reverse = false;
+        st.t_mode = 0.0;
+        st.psi += pi;
+    }
+    // Several epochs as well as seconds: a run of glitches under poor sky lasts a few
+    // epochs and must not make a slow platform a car.
+    if st.t_fast >= mp.fast_secs
+        && st.n_fast >= FAST_EPOCHS
+        && st.vehicle.platform != Platform::Robot
+    {
+        st.vehicle.car = true;
+    }
+}

@@ -1,0 +1,194 @@
+//! From the filter's σ to the reported σ: monotone maps per vehicle class and state,
+//! the turn term and the clean-receiver rule.
+
+use serde::{Deserialize, Serialize};
+
+use crate::head::MAX_STD_DEG;
+
+/// Speed (m/s) from which a moving epoch's σ gets the turn term
+/// ([`SigmaMaps::yaw_s`]). Below it the speed sets the error and the first map's σ is
+/// nearly flat in the raw σ, so a second map over both would mix slow epochs with
+/// turns at speed (on simulated cars at 0.5–2 m/s that cost 4–8 points within 1σ).
+pub const TURN_SPEED: f32 = 2.0;
+
+/// Knots of a [`SigmaMap`].
+pub const SIGMA_KNOTS: usize = 12;
+
+/// A monotone map from the filter's raw σ to the reported σ, both in degrees, linear
+/// in log σ between knots and constant beyond them: fitted on validation tracks so that
+/// the reported σ covers the errors as a σ should (a share within 1σ near 68%, at
+/// least 90% within 2σ), which one scale factor cannot do for heavy-tailed errors.
+/// All-zero knots (the default) are the identity.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SigmaMap {
+    /// Raw σ at the knots, degrees, increasing.
+    pub raw_deg: [f32; SIGMA_KNOTS],
+    /// Reported σ at the knots, degrees, non-decreasing.
+    pub reported_deg: [f32; SIGMA_KNOTS],
+}
+
+impl SigmaMap {
+    /// Whether this is the identity (no knots).
+    pub fn is_identity(&self) -> bool {
+        self.raw_deg.iter().all(|&v| v == 0.0)
+    }
+
+    /// The reported σ (degrees, at most the uniform σ) for a raw σ in degrees.
+    pub fn apply(&self, raw_deg: f32) -> f32 {
+        if self.is_identity() || !raw_deg.is_finite() {
+            return raw_deg.min(MAX_STD_DEG);
+        }
+        let (x, y) = (&self.raw_deg, &self.reported_deg);
+        let out = if raw_deg <= x[0] {
+            y[0]
+        } else if raw_deg >= x[SIGMA_KNOTS - 1] {
+            y[SIGMA_KNOTS - 1]
+        } else {
+            let i = x
+                .partition_point(|&v| v <= raw_deg)
+                .clamp(1, SIGMA_KNOTS - 1);
+            let (l0, l1) = (x[i - 1].ln(), x[i].ln());
+            let t = if l1 > l0 {
+                (raw_deg.ln() - l0) / (l1 - l0)
+            } else {
+                1.0
+            };
+            y[i - 1] + t * (y[i] - y[i - 1])
+        };
+        out.min(MAX_STD_DEG)
+    }
+}
+
+/// The σ maps of the two vehicle classes, moving and standing: errors of a car
+/// (reverses, holds its heading when stopped) and of a vehicle not yet known to be one
+/// (perhaps turning in place) grow differently with the filter's σ, and a held heading
+/// fails differently (drift, a misread direction) from a followed course (noise,
+/// glitches).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SigmaMaps {
+    /// Cars, moving epochs.
+    pub car: SigmaMap,
+    /// Other vehicles, moving epochs.
+    pub platform: SigmaMap,
+    /// Cars, standing epochs (of a receiver not known to be [`clean`]). Fitted per
+    /// stop (each stop weighs one, however long), because a stop repeats one error and
+    /// a filter fuses it once; the share per epoch is held to the bars as well.
+    pub car_still: SigmaMap,
+    /// Cars, standing epochs of a [`clean`] receiver, fitted as `car_still`; absent
+    /// (identity) in older files, which then use `car_still`.
+    pub car_still_clean: SigmaMap,
+    /// Other vehicles, standing epochs.
+    pub platform_still: SigmaMap,
+    /// Seconds of yaw rate added in quadrature to the mapped σ of a car moving at
+    /// [`TURN_SPEED`] or faster: `hypot(σ, yaw_s·|ω|)`, then through `car_turn`.
+    /// Without it σ knows noise and speed but not turning, and averages straights with
+    /// turns: on held-out simulated cars at 2 m/s and faster that left 75% of errors
+    /// within 1σ under 0.5°/s and 40% at 10°/s and more (a lagging receiver's course
+    /// trails the heading by ω·τ, τ unknown; a lever arm adds its own offset in a
+    /// turn). 0 (older files) leaves σ as it was.
+    pub yaw_s: f32,
+    /// A car's moving epochs map the filter's σ alone, without the network's
+    /// correction `y₂`.
+    /// The filter's σ follows the receiver's noise (σ_v/ŝ): on a fresh simulated set
+    /// at 2 m/s and faster its median grows 4.3× from the quietest quarter of drives to
+    /// the noisiest, where the errors' 68th percentile grows 3×; with `y₂`, trained on
+    /// all receivers pooled, it grew 1.7×, so σ was too wide for quiet receivers and
+    /// too narrow for noisy ones. False (older files) keeps `y₂`.
+    pub moving_without_y2: bool,
+    /// Floor of a moving epoch's reported σ, as a multiple of the course scatter the
+    /// source has shown at speed ([`Vehicle::scatter`]) over the speed: `scatter_k ·
+    /// √scatter / speed`. The maps are fitted on receivers the recipes know; a receiver
+    /// noisier than its accuracy says (or one without any) shows it here first. 0
+    /// (older files) is no floor.
+    ///
+    /// [`Vehicle::scatter`]: crate::modes::Vehicle::scatter
+    pub scatter_k: f32,
+    /// Cars, moving at speed: the σ with its turn term to the reported σ (a turn's
+    /// errors have heavier tails than a Gaussian term covers, so the sum is mapped
+    /// again). Cars only: the simulated platforms turn in place below [`TURN_SPEED`],
+    /// so the only other vehicles at speed there are cars not yet known to be cars,
+    /// no basis for a real platform's map.
+    pub car_turn: SigmaMap,
+}
+
+/// A receiver is clean when the noise the filter measured at rest is under this share
+/// of the speed accuracy it reports: its held headings lack the heavy tail of
+/// receivers noisier than they say (validation standing cars: 68th percentile 1.9°
+/// against 5.8°).
+pub const CLEAN_NOISE_RATIO: f32 = 0.5;
+
+/// Whether the receiver behind `noise` (measured, m/s) and `acc` (reported sAcc, m/s,
+/// NaN when absent) is clean; never without an sAcc.
+pub fn clean(noise: f32, acc: f32) -> bool {
+    acc.is_finite() && noise < CLEAN_NOISE_RATIO * acc
+}
+
+impl SigmaMaps {
+    /// The map of a class (`car`), state (`moving`) and receiver ([`clean`]).
+    pub fn map(&self, car: bool, moving: bool, clean: bool) -> &SigmaMap {
+        match (car, moving) {
+            (true, true) => &self.car,
+            (false, true) => &self.platform,
+            (true, false) if clean && !self.car_still_clean.is_identity() => &self.car_still_clean,
+            (true, false) => &self.car_still,
+            (false, false) => &self.platform_still,
+        }
+    }
+
+    /// The map of a class, state and receiver, to fit.
+    pub fn map_mut(&mut self, car: bool, moving: bool, clean: bool) -> &mut SigmaMap {
+        match (car, moving) {
+            (true, true) => &mut self.car,
+            (false, true) => &mut self.platform,
+            (true, false) if clean => &mut self.car_still_clean,
+            (true, false) => &mut self.car_still,
+            (false, false) => &mut self.platform_still,
+        }
+    }
+
+    /// The reported σ (degrees) for a raw σ in degrees.
+    pub fn apply(&self, car: bool, moving: bool, clean: bool, raw_deg: f32) -> f32 {
+        self.map(car, moving, clean).apply(raw_deg)
+    }
+
+    /// The reported σ (degrees) of an epoch of class `car` whose class map gave
+    /// `mapped_deg`, at yaw rate `yaw` (rad/s): for a car moving at [`TURN_SPEED`] or
+    /// faster, the turn term added in quadrature and mapped again. Slower epochs and
+    /// standing ones take their class map's σ as it is: there the speed sets the error
+    /// (and a held heading's turn is over); so do other vehicles (see `car_turn`).
+    pub fn with_turn(&self, car: bool, moving: bool, speed: f32, mapped_deg: f32, yaw: f32) -> f32 {
+        if !car || !moving || speed < TURN_SPEED || self.yaw_s <= 0.0 || !yaw.is_finite() {
+            return mapped_deg;
+        }
+        let sum = mapped_deg.hypot(self.yaw_s * yaw.abs().to_degrees());
+        self.car_turn.apply(sum)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The turn term grows the σ of a car moving at speed in quadrature (identity turn
+    /// map: the sum as it is) and leaves slow and standing epochs, other vehicles and
+    /// older files (no term) alone.
+    #[test]
+    fn turn_term_adds_in_quadrature_for_cars_at_speed_only() {
+        let ten = 10f32.to_radians();
+        let maps = SigmaMaps {
+            yaw_s: 0.4,
+            ..SigmaMaps::default()
+        };
+        assert!((maps.with_turn(true, true, 8.0, 3.0, ten) - 5.0).abs() < 1e-4);
+        assert!((maps.with_turn(true, true, 8.0, 3.0, -ten) - 5.0).abs() < 1e-4);
+        assert_eq!(maps.with_turn(false, true, 8.0, 3.0, ten), 3.0, "not a car");
+        assert_eq!(maps.with_turn(true, true, 1.5, 3.0, ten), 3.0, "slow");
+        assert_eq!(maps.with_turn(true, false, 8.0, 3.0, ten), 3.0, "standing");
+        assert_eq!(
+            SigmaMaps::default().with_turn(true, true, 8.0, 3.0, ten),
+            3.0
+        );
+    }
+}

@@ -1,0 +1,161 @@
+//! The recurrent state of one history and one epoch's step before the network's
+//! corrections.
+
+use super::vehicle::{Platform, Vehicle};
+
+/// The recurrent state one step reads and writes. Public for the lab's training, which
+/// records it from recurrent runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepState {
+    /// Previous heading, radians (not wrapped).
+    pub psi: f32,
+    /// Previous `log σ` of the filter (σ in radians; the prior variance is `σ² + q²dt`).
+    pub log_sigma: f32,
+    /// Whether `psi` exists (false on the first epoch of a history).
+    pub has_prior: bool,
+    /// Seconds since the last moving epoch.
+    pub t_still: f32,
+    /// Seconds in the current mode while moving.
+    pub t_mode: f32,
+    /// Reversing (course = heading + 180°).
+    pub reverse: bool,
+    /// Whether the history has reached its first epoch the tuned `kf` would use.
+    pub moved: bool,
+    /// Seconds continuously above `fast_speed`.
+    pub t_fast: f32,
+    /// Epochs continuously above `fast_speed`.
+    pub n_fast: u16,
+    /// Previous epoch's speed, m/s.
+    pub prev_speed: f32,
+    /// Last velocity the filter used (north, east), for the glitch gate; NaN when none.
+    pub prev_v: [f32; 2],
+    /// Epochs ignored as glitches in a row.
+    pub skips: u8,
+    /// Seconds since the velocity in `prev_v` (the glitch gate's elapsed time).
+    pub t_used: f32,
+    /// A standing car's last rejected moving velocity, which the next epoch must
+    /// confirm; NaN when none.
+    pub pending_v: [f32; 2],
+    /// The network's σ correction (`y₂`, log units) at the last moving epoch: a
+    /// standing car's held heading keeps the uncertainty it stopped with, the network's
+    /// share of it included (a car that stopped out of a slow turn or a parking
+    /// manoeuvre holds a poorer heading than one that braked on a straight road).
+    pub held_y2: f32,
+    /// Whether the receiver was [`clean`] at the last moving epoch: a stop keeps the
+    /// σ map it started with, so the noise measured during the stop cannot make a held
+    /// σ jump down.
+    ///
+    /// [`clean`]: crate::modes::clean
+    pub held_clean: bool,
+    /// Yaw rate of the heading while moving, rad/s: the heading's change per second
+    /// over moving epochs, smoothed over [`YAW_TAU_S`]; 0 while standing. A turn is
+    /// where a receiver's lag (course trailing heading by ω·τ) and the antenna's
+    /// lever arm show, so a moving epoch's σ grows with it ([`SigmaMaps::yaw_s`]).
+    ///
+    /// [`YAW_TAU_S`]: crate::modes::YAW_TAU_S
+    /// [`SigmaMaps::yaw_s`]: crate::modes::SigmaMaps::yaw_s
+    pub yaw: f32,
+    /// Seconds of plain motion on a steady course up to this epoch (speed at least
+    /// [`RELEASE_SPEED`] and `3·sAcc`, course within [`RELEASE_COURSE_DEG`] of the
+    /// previous epoch's), 0 when this epoch is not: the release rule's clock.
+    ///
+    /// [`RELEASE_SPEED`]: crate::modes::RELEASE_SPEED
+    /// [`RELEASE_COURSE_DEG`]: crate::modes::RELEASE_COURSE_DEG
+    pub t_motion: f32,
+    /// Epochs in that run of plain motion.
+    pub n_motion: u16,
+    /// Velocity (north, east; m/s) of the run's last steady epoch, for the release
+    /// rule's steadiness.
+    pub motion_v: [f32; 2],
+    /// Seconds since that epoch.
+    pub motion_dt: f32,
+    /// Unsteady epochs skipped since (glitches inside a departure), at most `max_skips`.
+    pub motion_skips: u8,
+    /// The vehicle and its receiver.
+    pub vehicle: Vehicle,
+}
+
+impl StepState {
+    /// The state of an empty history.
+    pub const EMPTY: StepState = StepState {
+        psi: 0.0,
+        log_sigma: 0.0,
+        has_prior: false,
+        t_still: 0.0,
+        t_mode: 0.0,
+        reverse: false,
+        moved: false,
+        t_fast: 0.0,
+        n_fast: 0,
+        prev_speed: 0.0,
+        prev_v: [f32::NAN; 2],
+        skips: 0,
+        t_used: 0.0,
+        pending_v: [f32::NAN; 2],
+        held_y2: 0.0,
+        held_clean: false,
+        yaw: 0.0,
+        t_motion: 0.0,
+        n_motion: 0,
+        motion_v: [0.0; 2],
+        motion_dt: 0.0,
+        motion_skips: 0,
+        vehicle: Vehicle::UNKNOWN,
+    };
+
+    /// An empty history of a source on `platform`.
+    pub fn fresh(platform: Platform) -> StepState {
+        let mut st = Self::EMPTY;
+        st.vehicle.platform = platform;
+        st.vehicle.car = platform == Platform::Car;
+        st
+    }
+
+    /// Whether the last epoch moved (its clock of time stopped is at zero): the one
+    /// definition that picks the moving σ maps, records what a stop will hold
+    /// (`held_y2`, `held_clean`) and sorts epochs when the maps are fitted. A glitch
+    /// leaves it as it was.
+    pub fn moving_now(&self) -> bool {
+        self.t_still == 0.0
+    }
+
+    /// An empty history that keeps what it knew about the vehicle (after a fix gap).
+    pub fn after_gap(&self) -> StepState {
+        StepState {
+            vehicle: self.vehicle,
+            ..Self::EMPTY
+        }
+    }
+}
+
+/// One epoch's filter step before the network's corrections: what [`commit`] needs and
+/// what the network's inputs describe.
+///
+/// [`commit`]: crate::modes::commit
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Step {
+    /// Course atan2(v_E, v_N), radians.
+    pub course: f32,
+    /// Heading the step starts from (after the rules' direction changes), radians.
+    pub prior: f32,
+    /// Prior variance, radians².
+    pub p: f32,
+    /// Measurement variance, radians² (the uniform cap when the velocity is noise).
+    pub r2: f32,
+    /// Kalman gain `P/(P + R²)`; 0 when the measurement carries nothing or is a glitch.
+    pub k: f32,
+    /// The rule's mode for this epoch.
+    pub rule_reverse: bool,
+    /// The epoch moves (measurement σ under `moving_r`).
+    pub moving: bool,
+    /// Before the first motion: answer the prior with the uniform σ (the `kf` convention).
+    pub hold: bool,
+    /// The glitch gate rejected this epoch.
+    pub glitch: bool,
+    /// Velocity noise σ used, m/s.
+    pub sigma_v: f32,
+    /// Speed, m/s.
+    pub speed: f32,
+    /// The receiver reported a speed accuracy (sAcc) with this epoch.
+    pub has_acc: bool,
+}

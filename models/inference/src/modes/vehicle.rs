@@ -1,0 +1,85 @@
+//! What carries the receiver: the platform a source's user names, what one history
+//! has learned about the vehicle and its receiver, and when driving makes it a car.
+
+use serde::{Deserialize, Serialize};
+
+/// Fewest epochs above `fast_speed` that make a vehicle a car.
+pub const FAST_EPOCHS: u16 = 5;
+
+/// What carries the receiver: whether the mode filter may take it for a car, and
+/// whether it may turn in place. Set per source; `Auto` decides online.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Platform {
+    /// Decide online: a vehicle that drives fast for a while is a car until it leaves a
+    /// stand sideways (it turned in place).
+    #[default]
+    Auto,
+    /// A car, truck or van: reverses, never turns in place, holds its heading at a stop.
+    Car,
+    /// A robot or other platform that turns in place (and may reverse): a stop holds
+    /// nothing, its heading follows the course once it moves.
+    Robot,
+}
+
+impl Platform {
+    /// The lowercase name (`auto`, `car`, `robot`) used in configs and flags.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Platform::Auto => "auto",
+            Platform::Car => "car",
+            Platform::Robot => "robot",
+        }
+    }
+}
+
+impl std::fmt::Display for Platform {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for Platform {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "auto" => Ok(Platform::Auto),
+            "car" => Ok(Platform::Car),
+            "robot" => Ok(Platform::Robot),
+            other => Err(format!("unknown platform `{other}` (auto, car or robot)")),
+        }
+    }
+}
+
+/// What one history knows about the vehicle and its receiver: kept across fix gaps
+/// (the same vehicle), cleared by other resets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vehicle {
+    /// Driven above `fast_speed` for `fast_secs`: a car (reverses, never turns in place).
+    /// Always true for [`Platform::Car`], never for [`Platform::Robot`].
+    pub car: bool,
+    /// Running low quantile of slow speeds, m/s (NaN until the first epoch).
+    pub noise: f32,
+    /// Mean square of the course's scatter at speed, as a velocity across the track
+    /// (m²/s²): how far each course departs from the previous heading turned at the
+    /// current yaw rate, times the speed, smoothed over [`SCATTER_TAU_S`] of driving
+    /// (NaN until measured). Where a receiver's accuracy (or its absence) understates
+    /// its noise, this is what σ has not met ([`SigmaMaps::scatter_k`]).
+    ///
+    /// [`SCATTER_TAU_S`]: crate::modes::SCATTER_TAU_S
+    /// [`SigmaMaps::scatter_k`]: crate::modes::SigmaMaps::scatter_k
+    pub scatter: f32,
+    /// What the source's user says carries the receiver; kept through every reset.
+    pub platform: Platform,
+}
+
+impl Vehicle {
+    /// Nothing known yet.
+    pub const UNKNOWN: Vehicle = Vehicle {
+        car: false,
+        noise: f32::NAN,
+        scatter: f32::NAN,
+        platform: Platform::Auto,
+    };
+}
