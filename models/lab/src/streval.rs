@@ -8,12 +8,11 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use ghnet_models::head::Head;
-use ghnet_models::params::{Arch, ParamSet};
 use ghnet_models::stream::{Epoch, StreamPredictor};
-use ghnet_models::weights::{ModelKind, ModelMeta};
+use ghnet_models::weights::ModelKind;
 use ghnet_models::{Model, Status};
 
+use crate::drive::Platform;
 use crate::eval::wrap_deg;
 use crate::logs::LogTrack;
 
@@ -53,27 +52,6 @@ const TURN_MAX_DT: f64 = 1.5;
 /// Measured speed below which a log without true speed counts as stopped: receiver noise
 /// alone reads 0.05–0.2 m/s.
 pub const STOPPED_MEASURED: f32 = 0.2;
-
-/// A model-free Kalman filter model with these parameters (what `kf` ships as).
-pub fn kf_model(q_deg_per_sqrt_s: f32, sigma_v_mps: f32, max_gap_s: f32) -> Model {
-    let arch = Arch {
-        input: 0,
-        conv: vec![],
-        fc: vec![],
-        output: 0,
-        window: 1,
-    };
-    let kind = ModelKind::Kf {
-        q_deg_per_sqrt_s,
-        sigma_v_mps,
-        max_gap_s,
-    };
-    let head = Head::Residual {
-        range_deg: [0.0, 360.0],
-    };
-    let meta = ModelMeta::new("kf", arch.clone(), head, kind);
-    Model::new(ParamSet::zeros(&arch), meta)
-}
 
 /// One estimator's answers over a set of tracks, concatenated.
 #[derive(Debug, Clone, Serialize)]
@@ -158,24 +136,6 @@ pub fn mae(a: &Answers, tracks: &[LogTrack]) -> f64 {
             (s + wrap_deg(h - t).abs() as f64, n + 1)
         });
     s / n.max(1) as f64
-}
-
-/// The Kalman filter tuned on `tracks` by grid search over `q` and `σ_v` (streamed MAE):
-/// the baseline's parameters, chosen on validation data only.
-pub fn tune_kf(tracks: &[LogTrack], max_gap_s: f32) -> (f32, f32, f64) {
-    let mut best = (0.0, 0.0, f64::INFINITY);
-    for q in [
-        0.5f32, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0,
-    ] {
-        for sv in [0.03f32, 0.05, 0.1, 0.2, 0.3, 0.5, 0.8, 1.2, 2.0, 3.0, 4.0] {
-            let m = Arc::new(kf_model(q, sv, max_gap_s));
-            let e = mae(&run_model(&m, tracks, "kf"), tracks);
-            if e < best.2 {
-                best = (q, sv, e);
-            }
-        }
-    }
-    best
 }
 
 /// One estimator in one band.
@@ -535,6 +495,76 @@ fn turn_rows(tracks: &[LogTrack], answers: &[Answers], truth: &[f32], speed: &[f
             }
         })
         .collect()
+}
+
+/// The tables of `model` against the baselines on `tracks` (one per platform present
+/// and one for all). `kf` is the filter of every table, except the turn-in-place table
+/// when `kf_platform` (a filter tuned on such platforms) is given.
+pub fn tables(
+    model: &Arc<Model>,
+    kf: &Arc<Model>,
+    kf_platform: Option<&Arc<Model>>,
+    tracks: &[LogTrack],
+    what: &str,
+) -> Vec<Table> {
+    let mut groups: Vec<(String, Vec<LogTrack>, &Arc<Model>)> = Vec::new();
+    for (p, label) in [
+        (Platform::Car, "cars"),
+        (Platform::TurnInPlace, "turn-in-place platforms"),
+    ] {
+        let g = only(tracks, p);
+        if !g.is_empty() && g.len() < tracks.len() {
+            let f = match p {
+                Platform::TurnInPlace => kf_platform.unwrap_or(kf),
+                Platform::Car => kf,
+            };
+            groups.push((format!("{what}, {label}"), g, f));
+        }
+    }
+    groups.push((what.to_owned(), tracks.to_vec(), kf));
+    groups
+        .into_iter()
+        .map(|(title, g, kf)| {
+            let mut answers = vec![run_atan2(&g)];
+            answers.extend(run_receiver(&g));
+            answers.push(run_model(kf, &g, "kf"));
+            answers.push(run_model(model, &g, model.name()));
+            let moved = start_gate(model, kf).map(|(sv, gap)| after_first_motion(&g, sv, gap));
+            table(&title, &g, &answers, moved.as_deref())
+        })
+        .collect()
+}
+
+/// The start convention's gate (σ_v, gap limit) of a table: the temporal model's own
+/// (the σ_v of the `kf` it was made with), else `kf`'s.
+fn start_gate(model: &Model, kf: &Model) -> Option<(f32, f32)> {
+    [model, kf].iter().find_map(|m| match m.meta().kind {
+        ModelKind::Temporal {
+            sigma_v_mps,
+            max_gap_s,
+            ..
+        }
+        | ModelKind::Kf {
+            sigma_v_mps,
+            max_gap_s,
+            ..
+        } => Some((sigma_v_mps, max_gap_s)),
+        ModelKind::Epoch => None,
+    })
+}
+
+/// Tracks of one platform.
+pub fn only(tracks: &[LogTrack], p: Platform) -> Vec<LogTrack> {
+    tracks
+        .iter()
+        .filter(|t| t.platform == Some(p))
+        .cloned()
+        .collect()
+}
+
+/// Whether `m` is the Kalman filter.
+pub fn is_kf(m: &Model) -> bool {
+    matches!(m.meta().kind, ModelKind::Kf { .. })
 }
 
 /// The table as Markdown: MAE per estimator, the last estimator against atan2 and
