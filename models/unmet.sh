@@ -9,7 +9,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release -p ghnet-lab --bin ghnet
-G=./target/release/ghnet
+# The binary cargo builds, wherever CARGO_TARGET_DIR puts it.
+G="${CARGO_TARGET_DIR:-target}/release/ghnet"
 T=$(mktemp -d)
 trap 'rm -rf "$T"' EXIT
 OUT=models/reports/unmet.md
