@@ -11,15 +11,18 @@ use ghnet_models::Model;
 use crate::logs::LogTrack;
 use crate::streval::{mae, run_model};
 
+/// The Kalman filter has no network: no layers, and a window of the current epoch.
+const NO_NETWORK: Arch = Arch {
+    input: 0,
+    conv: Vec::new(),
+    fc: Vec::new(),
+    output: 0,
+    window: 1,
+};
+
 /// A model-free Kalman filter model with these parameters (what `kf` ships as).
 pub fn kf_model(q_deg_per_sqrt_s: f32, sigma_v_mps: f32, max_gap_s: f32) -> Model {
-    let arch = Arch {
-        input: 0,
-        conv: vec![],
-        fc: vec![],
-        output: 0,
-        window: 1,
-    };
+    let arch = NO_NETWORK;
     let kind = ModelKind::Kf {
         q_deg_per_sqrt_s,
         sigma_v_mps,
