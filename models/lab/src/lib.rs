@@ -19,6 +19,7 @@
 //!   filter, the receiver's course), with σ calibration.
 //! - [`bayes`]: the Bayes-optimal estimate for the S1 prior (the physical limit).
 //! - [`eval`]: per-speed-bin tables, baselines and σ calibration; [`plot`]: the plots.
+//! - [`table`]: the table engine both kinds of table count and print with.
 //! - [`replay`]: streaming CSV inference for offline replay of logs (`ghnet infer`);
 //!   [`receiver_log`]: UBX, NMEA and gpsd receiver logs as its input.
 //!
@@ -37,5 +38,6 @@ pub mod receiver_log;
 pub mod replay;
 pub mod sim;
 pub mod streval;
+pub mod table;
 pub mod temporal;
 pub mod train;

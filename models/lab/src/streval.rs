@@ -15,6 +15,7 @@ use ghnet_models::{Model, Status};
 use crate::drive::Platform;
 use crate::eval::wrap_deg;
 use crate::logs::LogTrack;
+use crate::table::{Markdown, Tally};
 
 /// Name of the atan2 baseline in tables.
 pub const ATAN2: &str = "atan2";
@@ -265,18 +266,18 @@ impl Table {
     }
 }
 
+/// The [`Cell`] of `a` over the epochs `idx`, counted by the table engine.
 fn cell(a: &Answers, truth: &[f32], idx: &[usize]) -> Cell {
-    let n = idx.len().max(1) as f64;
-    let e = |i: usize| wrap_deg(a.heading_deg[i] - truth[i]).abs();
-    let within = |k: f32| {
-        a.std_deg
-            .as_ref()
-            .map(|s| idx.iter().filter(|&&i| e(i) <= k * s[i]).count() as f64 / n)
-    };
+    let mut t = Tally::default();
+    for &i in idx {
+        let err = wrap_deg(a.heading_deg[i] - truth[i]) as f64;
+        t.add(err, a.std_deg.as_ref().map(|s| s[i] as f64));
+    }
+    let t = t.tallied(a.std_deg.is_some());
     Cell {
-        mae_deg: idx.iter().map(|&i| e(i) as f64).sum::<f64>() / n,
-        within_1sigma: within(1.0),
-        within_2sigma: within(2.0),
+        mae_deg: t.mae_deg,
+        within_1sigma: t.within_1sigma,
+        within_2sigma: t.within_2sigma,
     }
 }
 
@@ -639,36 +640,29 @@ fn memory_markdown(name: &str, m: &Memory) -> String {
 fn rows_markdown(t: &Table, first: &str, rows: &[Row]) -> String {
     let last = t.names.len() - 1;
     let kf = t.names.iter().position(|n| n.starts_with("kf"));
-    let mut s = format!("| {first} | N |");
-    for n in &t.names {
-        s += &format!(" MAE {n} |");
-    }
-    s += &format!(" {} vs atan2 [%] |", t.names[last]);
+    let mut header = vec![first.to_owned(), "N".to_owned()];
+    header.extend(t.names.iter().map(|n| format!("MAE {n}")));
+    header.push(format!("{} vs atan2 [%]", t.names[last]));
     if kf.is_some() {
-        s += &format!(" {} vs kf [%] |", t.names[last]);
+        header.push(format!("{} vs kf [%]", t.names[last]));
     }
-    s += " ≤1σ [%] | ≤2σ [%] |\n|---|---:|";
-    s += &"---:|".repeat(t.names.len() + 3 + kf.is_some() as usize);
-    s += "\n";
+    header.extend(["≤1σ [%]".to_owned(), "≤2σ [%]".to_owned()]);
+    let mut table = Markdown::new(&header, true);
     for r in rows {
-        s += &format!("| {} | {} |", r.label, r.count);
-        for c in &r.cells {
-            s += &format!(" {:.2} |", c.mae_deg);
-        }
+        let mut cells = vec![r.label.clone(), r.count.to_string()];
+        cells.extend(r.cells.iter().map(|c| format!("{:.2}", c.mae_deg)));
         let m = r.cells[last].mae_deg;
         let gain = |b: f64| if b > 0.0 { 100.0 * (b - m) / b } else { 0.0 };
-        s += &format!(" {:.1} |", gain(r.cells[0].mae_deg));
+        cells.push(format!("{:.1}", gain(r.cells[0].mae_deg)));
         if let Some(k) = kf {
-            s += &format!(" {:.1} |", gain(r.cells[k].mae_deg));
+            cells.push(format!("{:.1}", gain(r.cells[k].mae_deg)));
         }
         let pct = |v: Option<f64>| v.map_or("".into(), |v| format!("{:.1}", 100.0 * v));
-        s += &format!(
-            " {} | {} |\n",
-            pct(r.cells[last].within_1sigma),
-            pct(r.cells[last].within_2sigma)
-        );
+        cells.push(pct(r.cells[last].within_1sigma));
+        cells.push(pct(r.cells[last].within_2sigma));
+        table.row(&cells);
     }
-    s
+    table.finish()
 }
 
 #[cfg(test)]

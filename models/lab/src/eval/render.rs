@@ -4,14 +4,9 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::stats::{fmt_speed, Comparison, ComparisonKind, EstimatorStats, EvalError, Report, Row};
+use crate::table::{fmt_opt, Markdown};
 
-fn fmt_opt(x: Option<f64>, digits: usize) -> String {
-    match x {
-        Some(v) => format!("{v:.digits$}"),
-        None => "–".to_owned(),
-    }
-}
+use super::stats::{fmt_speed, Comparison, ComparisonKind, EstimatorStats, EvalError, Report, Row};
 
 fn comparison_header(c: &Comparison) -> String {
     match c.kind {
@@ -56,8 +51,7 @@ fn metric_table(
     if pct_of.is_some() {
         header.extend(comps.iter().map(comparison_header));
     }
-    let _ = writeln!(out, "| {} |", header.join(" | "));
-    let _ = writeln!(out, "|{}", "---:|".repeat(header.len()));
+    let mut table = Markdown::new(&header, false);
     for (bold, row) in all_rows(r) {
         let label = row_label(bold, row);
         let mut cells = vec![label, row.count.to_string()];
@@ -69,8 +63,9 @@ fn metric_table(
                     .map(|c| fmt_opt(row.comparison(&c.estimator, &c.reference).and_then(f), 1)),
             );
         }
-        let _ = writeln!(out, "| {} |", cells.join(" | "));
+        table.row(&cells);
     }
+    out.push_str(&table.finish());
     out.push('\n');
 }
 
@@ -79,8 +74,6 @@ fn metric_table(
 /// estimator's, its improvement over atan2, its gap to the Bayes limit when present, and
 /// its σ calibration. This is what the models' README shows; the full report has the rest.
 pub fn to_markdown_compact(r: &Report, estimator: &str, min_count: usize) -> String {
-    use std::fmt::Write as _;
-    let mut out = String::new();
     let mut header = vec!["Speed [m/s]".to_owned(), "N".to_owned()];
     for n in &r.estimators {
         header.push(format!("MAE {n}"));
@@ -92,8 +85,7 @@ pub fn to_markdown_compact(r: &Report, estimator: &str, min_count: usize) -> Str
     }
     header.push("≤1σ [%]".into());
     header.push("≤2σ [%]".into());
-    let _ = writeln!(out, "| {} |", header.join(" | "));
-    let _ = writeln!(out, "|{}", "---:|".repeat(header.len()));
+    let mut table = Markdown::new(&header, false);
     for (bold, row) in all_rows(r) {
         if !bold && row.count < min_count {
             continue;
@@ -121,9 +113,9 @@ pub fn to_markdown_compact(r: &Report, estimator: &str, min_count: usize) -> Str
             s.and_then(|s| s.within_2sigma).map(|x| 100.0 * x),
             1,
         ));
-        let _ = writeln!(out, "| {} |", cells.join(" | "));
+        table.row(&cells);
     }
-    out
+    table.finish()
 }
 
 /// Renders the report as Markdown: MAE, RMSE and absolute-error std tables per speed
@@ -183,8 +175,7 @@ pub fn to_markdown(r: &Report) -> String {
             header.push(format!("{n} ≤1σ"));
             header.push(format!("{n} ≤2σ"));
         }
-        let _ = writeln!(out, "| {} |", header.join(" | "));
-        let _ = writeln!(out, "|{}", "---:|".repeat(header.len()));
+        let mut table = Markdown::new(&header, false);
         for (bold, row) in all_rows(r) {
             let label = row_label(bold, row);
             let mut cells = vec![label, row.count.to_string()];
@@ -193,8 +184,9 @@ pub fn to_markdown(r: &Report) -> String {
                 cells.push(fmt_opt(s.within_1sigma.map(|x| 100.0 * x), 1));
                 cells.push(fmt_opt(s.within_2sigma.map(|x| 100.0 * x), 1));
             }
-            let _ = writeln!(out, "| {} |", cells.join(" | "));
+            table.row(&cells);
         }
+        out.push_str(&table.finish());
         out.push('\n');
     }
     out

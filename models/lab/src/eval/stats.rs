@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::sim::Sample;
+use crate::table::Tally;
 
 /// Default name of the model-free baseline, ψ = atan2(v_E, v_N).
 pub const ATAN2: &str = "atan2";
@@ -274,49 +275,23 @@ pub struct Report {
     pub overall: Row,
 }
 
-/// Running sums for one estimator in one group; f64 so long sums do not drift.
-#[derive(Clone, Default)]
-struct Acc {
-    n: usize,
-    sum_abs: f64,
-    sum_sq: f64,
-    n_sigma: usize,
-    in1: usize,
-    in2: usize,
-}
-
-impl Acc {
-    fn add(&mut self, err: f64, std: Option<f64>) {
-        self.n += 1;
-        self.sum_abs += err.abs();
-        self.sum_sq += err * err;
-        if let Some(s) = std {
-            self.n_sigma += 1;
-            self.in1 += usize::from(err.abs() <= s);
-            self.in2 += usize::from(err.abs() <= 2.0 * s);
-        }
-    }
-
-    fn stats(&self, name: &str) -> EstimatorStats {
-        let n = self.n.max(1) as f64;
-        let mae = self.sum_abs / n;
-        let ms = self.sum_sq / n;
-        let share = |k: usize| (self.n_sigma > 0).then(|| k as f64 / self.n_sigma as f64);
-        EstimatorStats {
-            name: name.to_owned(),
-            mae_deg: mae,
-            rmse_deg: ms.sqrt(),
-            abs_err_std_deg: (ms - mae * mae).max(0.0).sqrt(),
-            within_1sigma: share(self.in1),
-            within_2sigma: share(self.in2),
-        }
+/// [`EstimatorStats`] named `name` from a tally.
+fn stats_of(t: &Tally, name: &str) -> EstimatorStats {
+    let t = t.tallied(t.has_sigma());
+    EstimatorStats {
+        name: name.to_owned(),
+        mae_deg: t.mae_deg,
+        rmse_deg: t.rmse_deg,
+        abs_err_std_deg: t.abs_err_std_deg,
+        within_1sigma: t.within_1sigma,
+        within_2sigma: t.within_2sigma,
     }
 }
 
 /// Samples of one group: per-estimator sums plus the speeds.
 #[derive(Clone)]
 struct Group {
-    accs: Vec<Acc>,
+    accs: Vec<Tally>,
     count: usize,
     sum_speed: f64,
 }
@@ -324,7 +299,7 @@ struct Group {
 impl Group {
     fn new(n_est: usize) -> Self {
         Self {
-            accs: vec![Acc::default(); n_est],
+            accs: vec![Tally::default(); n_est],
             count: 0,
             sum_speed: 0.0,
         }
@@ -355,7 +330,12 @@ fn make_row(
     names: &[String],
     cfg: &EvalConfig,
 ) -> Row {
-    let stats: Vec<EstimatorStats> = g.accs.iter().zip(names).map(|(a, n)| a.stats(n)).collect();
+    let stats: Vec<EstimatorStats> = g
+        .accs
+        .iter()
+        .zip(names)
+        .map(|(a, n)| stats_of(a, n))
+        .collect();
     let find = |n: &str| stats.iter().find(|s| s.name == n);
     let mut comparisons = Vec::new();
     let refs = [
