@@ -15,7 +15,7 @@ use ghnet_models::{Model, Status};
 use crate::drive::Platform;
 use crate::eval::wrap_deg;
 use crate::logs::LogTrack;
-use crate::table::{Markdown, Tally};
+use crate::table::{fmt_opt, Markdown, Tally};
 
 /// Name of the atan2 baseline in tables.
 pub const ATAN2: &str = "atan2";
@@ -159,6 +159,12 @@ pub struct Row {
     pub count: usize,
     /// One cell per estimator, in the table's order.
     pub cells: Vec<Cell>,
+    /// The longest run of `Held` answers of the last estimator among the row's epochs
+    /// at a measured speed of [`HELD_MOVING_SPEED`] or faster, seconds (each epoch
+    /// counts until the next, at most 1 s): a stop that outlives the motion, the
+    /// failure a filter fusing held headings cannot see. `None` for an estimator
+    /// without status.
+    pub held_moving_s: Option<f64>,
 }
 
 /// A table: rows per band plus "all".
@@ -208,13 +214,9 @@ pub struct Memory {
     pub drives_within_2sigma: Option<[f64; 3]>,
     /// Drives counted in the percentiles.
     pub drives: usize,
-    /// The longest run of `Held` answers at a measured speed of [`HELD_MOVING_SPEED`]
-    /// or faster, seconds (each epoch counts until the next, at most 1 s): a stop that outlives the
-    /// motion, the failure a filter fusing held headings cannot see.
-    pub held_moving_s: f64,
 }
 
-/// Measured speed (m/s) from which a `Held` answer counts in [`Memory::held_moving_s`].
+/// Measured speed (m/s) from which a `Held` answer counts in [`Row::held_moving_s`].
 pub const HELD_MOVING_SPEED: f32 = 1.0;
 
 /// The longest run (s) of `held` epochs at [`HELD_MOVING_SPEED`] or faster in `t`, each
@@ -279,6 +281,43 @@ fn cell(a: &Answers, truth: &[f32], idx: &[usize]) -> Cell {
         within_1sigma: t.within_1sigma,
         within_2sigma: t.within_2sigma,
     }
+}
+
+/// The row `label` over the epochs `idx` (of `tracks`, concatenated): a cell per
+/// estimator and the last estimator's longest `Held` run while moving.
+fn row(
+    label: String,
+    idx: &[usize],
+    tracks: &[LogTrack],
+    answers: &[Answers],
+    truth: &[f32],
+) -> Row {
+    Row {
+        label,
+        count: idx.len(),
+        cells: answers.iter().map(|a| cell(a, truth, idx)).collect(),
+        held_moving_s: answers.last().and_then(|a| held_moving(tracks, a, idx)),
+    }
+}
+
+/// The longest run (s) of `a`'s `Held` answers among the epochs `idx` of `tracks`
+/// (concatenated) at [`HELD_MOVING_SPEED`] or faster; `None` without status.
+fn held_moving(tracks: &[LogTrack], a: &Answers, idx: &[usize]) -> Option<f64> {
+    let n: usize = tracks.iter().map(LogTrack::len).sum();
+    if a.status.len() != n {
+        return None;
+    }
+    let mut held = vec![false; n];
+    for &i in idx {
+        held[i] = a.status[i] == Status::Held;
+    }
+    let (mut start, mut longest) = (0, 0.0f64);
+    for t in tracks {
+        let s0 = start;
+        longest = longest.max(longest_held_moving(t, |i| held[s0 + i]));
+        start += t.len();
+    }
+    Some(longest)
 }
 
 /// Per epoch of `tracks` (concatenated): whether its history has seen motion, i.e.
@@ -349,25 +388,19 @@ pub fn table(
             _ if hi.is_infinite() => format!("≥{lo}"),
             _ => format!("{lo}–{hi}"),
         };
-        rows.push(Row {
-            label,
-            count: idx.len(),
-            cells: answers.iter().map(|a| cell(a, &truth, &idx)).collect(),
-        });
+        rows.push(row(label, &idx, tracks, answers, &truth));
     }
     let all: Vec<usize> = (0..truth.len()).collect();
-    rows.push(Row {
-        label: "**all**".into(),
-        count: all.len(),
-        cells: answers.iter().map(|a| cell(a, &truth, &all)).collect(),
-    });
+    rows.push(row("**all**".into(), &all, tracks, answers, &truth));
     if let Some(m) = moved {
         let after: Vec<usize> = (0..truth.len()).filter(|&i| m[i]).collect();
-        rows.push(Row {
-            label: "after first motion".into(),
-            count: after.len(),
-            cells: answers.iter().map(|a| cell(a, &truth, &after)).collect(),
-        });
+        rows.push(row(
+            "after first motion".into(),
+            &after,
+            tracks,
+            answers,
+            &truth,
+        ));
     }
     Table {
         title: title.into(),
@@ -391,11 +424,7 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
     // Each stop's first held epoch (its one error and σ), and the epochs held.
     let (mut stops, mut held_epochs) = (Vec::new(), 0);
     let mut drives = Vec::new();
-    let mut held_moving_s = 0.0f64;
     for t in tracks {
-        let s0 = start;
-        held_moving_s =
-            held_moving_s.max(longest_held_moving(t, |i| a.status[s0 + i] == Status::Held));
         if t.len() >= MIN_DRIVE_EPOCHS {
             let idx: Vec<usize> = (start..start + t.len()).collect();
             drives.push(cell(a, truth, &idx));
@@ -432,7 +461,6 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
         drives_within_1sigma: spread(|c| c.within_1sigma),
         drives_within_2sigma: spread(|c| c.within_2sigma),
         drives: drives.len(),
-        held_moving_s,
     })
 }
 
@@ -485,15 +513,12 @@ fn turn_rows(tracks: &[LogTrack], answers: &[Answers], truth: &[f32], speed: &[f
             let idx: Vec<usize> = (0..truth.len())
                 .filter(|&i| speed[i] >= TURN_MIN_SPEED && rate[i] >= lo && rate[i] < hi)
                 .collect();
-            Row {
-                label: if hi.is_infinite() {
-                    format!("≥{lo}")
-                } else {
-                    format!("{lo}–{hi}")
-                },
-                count: idx.len(),
-                cells: answers.iter().map(|a| cell(a, truth, &idx)).collect(),
-            }
+            let label = if hi.is_infinite() {
+                format!("≥{lo}")
+            } else {
+                format!("{lo}–{hi}")
+            };
+            row(label, &idx, tracks, answers, truth)
         })
         .collect()
 }
@@ -569,8 +594,9 @@ pub fn is_kf(m: &Model) -> bool {
 }
 
 /// The table as Markdown: MAE per estimator, the last estimator against atan2 and
-/// against the second-to-last (the Kalman filter, by convention), and its σ calibration;
-/// then the same columns per turn rate (see [`Table::turn_rows`]).
+/// against the second-to-last (the Kalman filter, by convention), its σ calibration and
+/// its longest `Held` run while moving ([`Row::held_moving_s`]); then the same columns
+/// per turn rate (see [`Table::turn_rows`]).
 pub fn to_markdown(t: &Table) -> String {
     let speed = format!(
         "{} speed [m/s]",
@@ -611,11 +637,6 @@ fn memory_markdown(name: &str, m: &Memory) -> String {
             100.0 * m.stops_within_2sigma
         );
     }
-    s += &format!(
-        ".\n\nLongest `Held` run of {name} at {HELD_MOVING_SPEED} m/s or faster (measured): \
-         {:.1} s",
-        m.held_moving_s
-    );
     if let (Some(a), Some(b)) = (m.drives_within_1sigma, m.drives_within_2sigma) {
         let pct = |p: [f64; 3]| {
             format!(
@@ -646,7 +667,11 @@ fn rows_markdown(t: &Table, first: &str, rows: &[Row]) -> String {
     if kf.is_some() {
         header.push(format!("{} vs kf [%]", t.names[last]));
     }
-    header.extend(["≤1σ [%]".to_owned(), "≤2σ [%]".to_owned()]);
+    header.extend([
+        "≤1σ [%]".to_owned(),
+        "≤2σ [%]".to_owned(),
+        format!("longest `Held` at ≥{HELD_MOVING_SPEED} m/s [s]"),
+    ]);
     let mut table = Markdown::new(&header, true);
     for r in rows {
         let mut cells = vec![r.label.clone(), r.count.to_string()];
@@ -660,6 +685,7 @@ fn rows_markdown(t: &Table, first: &str, rows: &[Row]) -> String {
         let pct = |v: Option<f64>| v.map_or("".into(), |v| format!("{:.1}", 100.0 * v));
         cells.push(pct(r.cells[last].within_1sigma));
         cells.push(pct(r.cells[last].within_2sigma));
+        cells.push(fmt_opt(r.held_moving_s, 1));
         table.row(&cells);
     }
     table.finish()
