@@ -30,13 +30,7 @@ pub fn eval_stream(
         None => builtin_kf()?,
     };
     let (tracks, what) = match data {
-        Some(p) => {
-            let (t, s) = ghnet_lab::logs::read_csv(p, true)?;
-            if s.skipped > 0 {
-                eprintln!("{}: skipped {} of {} rows", p.display(), s.skipped, s.rows);
-            }
-            (t, p.display().to_string())
-        }
+        Some(p) => (ghnet_lab::logs::read_truth_csv(p)?, p.display().to_string()),
         None => {
             let r: TemporalRecipe = serde_json::from_value(model.meta().training_data.clone())
                 .context("model metadata does not name the drives it was trained on; use --data")?;

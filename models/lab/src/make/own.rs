@@ -236,16 +236,7 @@ pub fn read_logs(
 ) -> Result<(Vec<LogTrack>, Vec<LogTrack>)> {
     let mut all = Vec::new();
     for p in paths {
-        let (t, s) = logs::read_csv(p.as_ref(), true)?;
-        if s.skipped > 0 {
-            eprintln!(
-                "{}: skipped {} of {} rows",
-                p.as_ref().display(),
-                s.skipped,
-                s.rows
-            );
-        }
-        all.extend(t);
+        all.extend(logs::read_truth_csv(p.as_ref())?);
     }
     if all.is_empty() {
         bail!("no rows with velocity, time and truth");
