@@ -8,19 +8,21 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 SHARED="${SHARED:-../shared}"
 REAL="$SHARED/data/real/car-nagoya-2024-1hz.csv"
+# The binary cargo builds, wherever CARGO_TARGET_DIR puts it.
+G="${CARGO_TARGET_DIR:-target}/release/ghnet"
 cargo build --release -p ghnet-lab --bin ghnet
 # ghnet-temporal's recipe also tunes the Kalman filter baseline and writes kf.safetensors.
-./target/release/ghnet train --recipe ghnet-temporal --output models/inference/weights/ghnet-temporal.safetensors
+"$G" train --recipe ghnet-temporal --output models/inference/weights/ghnet-temporal.safetensors
 for m in ghnet-epoch paper-s1; do
-  ./target/release/ghnet train --recipe "$m" --output "models/inference/weights/$m.safetensors"
+  "$G" train --recipe "$m" --output "models/inference/weights/$m.safetensors"
 done
 # The binary embeds the models: rebuild before evaluating the built-in names.
 cargo build --release -p ghnet-lab --bin ghnet
 for m in ghnet-epoch paper-s1; do
-  ./target/release/ghnet eval --model "$m" --out-dir models/reports
+  "$G" eval --model "$m" --out-dir models/reports
 done
-./target/release/ghnet eval --model ghnet-temporal > models/reports/ghnet-temporal.md
-./target/release/ghnet eval --model ghnet-temporal --data "$REAL" \
+"$G" eval --model ghnet-temporal > models/reports/ghnet-temporal.md
+"$G" eval --model ghnet-temporal --data "$REAL" \
   --plot models/reports/car-nagoya-heading.svg > models/reports/car-nagoya.md
 # Splice the tables into models/README.md between their markers.
 python3 - <<'PY'

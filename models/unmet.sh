@@ -3,13 +3,14 @@
 # on: cars, and robots that spin in place at 20–60 °/s and drive at 0.3–2 m/s; every
 # receiver style (u-blox, RTKLIB, NMEA as in training, and the consumer style the
 # recipes never see) at 1, 5 and 10 Hz, answered with --platform auto; the consumer
-# style also with --platform car and robot. Each table ends with the longest `Held` run
-# at 1 m/s or faster. Writes models/reports/unmet.md (about a minute on 2 cores); seeds
+# style also with --platform car and robot. Each table's last column is the longest
+# `Held` run at 1 m/s or faster. Writes models/reports/unmet.md (about a minute on 2 cores); seeds
 # differ from every recipe's.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release -p ghnet-lab --bin ghnet
-G=./target/release/ghnet
+# The binary cargo builds, wherever CARGO_TARGET_DIR puts it.
+G="${CARGO_TARGET_DIR:-target}/release/ghnet"
 T=$(mktemp -d)
 trap 'rm -rf "$T"' EXIT
 OUT=models/reports/unmet.md

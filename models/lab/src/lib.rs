@@ -8,15 +8,18 @@
 //!   turn-in-place platforms, seen by 1–10 Hz receivers with lag, gaps and three styles.
 //! - [`logs`]: tracks of epochs with truth, from the simulator or from users' CSV logs.
 //! - [`loss`]: the losses that train the output heads, with their gradients.
+//! - [`make`]: where models are made: each recipe (per-epoch, temporal, the Kalman
+//!   filter, users' own logs) from data through training and σ maps to the written
+//!   file; [`ownlogs`]: the mode filter fitted to users' logs.
 //! - [`train`]: forward/backward of every layer, AdamW, early stopping, σ calibration.
 //! - [`temporal`]: training the temporal model as a learned filter step on its own
-//!   recorded outputs.
+//!   recorded outputs, and fitting its σ maps.
 //! - [`streval`]: streamed evaluation on tracks: tables per speed band with stops as
-//!   their own band, baselines (atan2, the tuned Kalman filter, the receiver's course),
-//!   σ calibration, and the Kalman filter's tuning.
+//!   their own band, per platform, against the baselines (atan2, the tuned Kalman
+//!   filter, the receiver's course), with σ calibration.
 //! - [`bayes`]: the Bayes-optimal estimate for the S1 prior (the physical limit).
-//! - [`eval`]: per-speed-bin tables, baselines and σ calibration; [`plot`]: the MAE plot.
-//! - [`recipes`]: how the shipped models are trained and judged.
+//! - [`eval`]: per-speed-bin tables, baselines and σ calibration; [`plot`]: the plots.
+//! - [`table`]: the table engine both kinds of table count and print with.
 //! - [`replay`]: streaming CSV inference for offline replay of logs (`ghnet infer`);
 //!   [`receiver_log`]: UBX, NMEA and gpsd receiver logs as its input.
 //!
@@ -28,13 +31,13 @@ pub mod drive;
 pub mod eval;
 pub mod logs;
 pub mod loss;
+pub mod make;
 pub mod ownlogs;
 pub mod plot;
 pub mod receiver_log;
-pub mod recipes;
 pub mod replay;
 pub mod sim;
 pub mod streval;
+pub mod table;
 pub mod temporal;
-pub mod timeline;
 pub mod train;

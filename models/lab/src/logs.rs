@@ -155,6 +155,22 @@ fn field(rec: &csv::StringRecord, i: Option<usize>) -> f64 {
         .unwrap_or(f64::NAN)
 }
 
+/// Read a log with truth, as training and evaluation do ([`read_csv`]), and say on
+/// stderr how many rows were skipped: a user whose log loses rows should see it, not
+/// find it in a smaller table.
+pub fn read_truth_csv(path: &Path) -> Result<Vec<LogTrack>> {
+    let (tracks, s) = read_csv(path, true)?;
+    if s.skipped > 0 {
+        eprintln!(
+            "{}: skipped {} of {} rows",
+            path.display(),
+            s.skipped,
+            s.rows
+        );
+    }
+    Ok(tracks)
+}
+
 /// Read a log: one [`LogTrack`] per run of equal `track` values, in file order.
 /// `need_truth` makes `truth_heading_deg` required (training, evaluation).
 pub fn read_csv(path: &Path, need_truth: bool) -> Result<(Vec<LogTrack>, ReadSummary)> {

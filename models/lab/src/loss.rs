@@ -118,9 +118,8 @@ pub fn filter_loss(
     let log_sigma = step_log_sigma + y[2];
     let e = wrap_rad(psi - truth_deg.to_radians());
     let sign = e.signum() * (e != 0.0) as i32 as f32;
-    let s = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
-    let inv_var = (-2.0 * s).exp();
-    let mut loss = e.abs() + sigma_weight * (0.5 * e * e * inv_var + s);
+    let (nll, dsigma, sigma) = sigma_likelihood(e, log_sigma, sigma_weight);
+    let mut loss = e.abs() + nll;
     let raw_gain = base.gain() + 0.25 * y[0];
     let slope = if (0.0..=1.0).contains(&raw_gain) {
         0.25
@@ -130,19 +129,37 @@ pub fn filter_loss(
     dy[0] = sign * slope * d;
     dy[1] = 0.0;
     if let Some(r) = reverse {
-        let p = sigmoid(y[1]);
-        let t = r as i32 as f32;
-        // Logistic loss, written stably: log(1 + e^{−z}) for z = ±y₁.
-        let z = if r { y[1] } else { -y[1] };
-        loss += REVERSE_WEIGHT * (-z.min(0.0) + (-z.abs()).exp().ln_1p());
-        dy[1] = REVERSE_WEIGHT * (p - t);
+        let (l, d) = reverse_loss(y[1], r);
+        loss += l;
+        dy[1] = d;
     }
-    dy[2] = if log_sigma == s {
+    dy[2] = dsigma;
+    (loss, e, sigma)
+}
+
+/// The weighted logistic loss of the reverse logit `logit` towards label `reverse`, and
+/// its derivative with respect to the logit.
+fn reverse_loss(logit: f32, reverse: bool) -> (f32, f32) {
+    // Written stably: log(1 + e^{−z}) for z = ±logit.
+    let z = if reverse { logit } else { -logit };
+    (
+        REVERSE_WEIGHT * (-z.min(0.0) + (-z.abs()).exp().ln_1p()),
+        REVERSE_WEIGHT * (sigmoid(logit) - reverse as i32 as f32),
+    )
+}
+
+/// The weighted Gaussian negative log-likelihood of the (detached) error `e` under
+/// `log σ`, clamped to its bounds; its derivative with respect to `log σ` (zero where
+/// the clamp holds it); and the clamped σ.
+fn sigma_likelihood(e: f32, log_sigma: f32, sigma_weight: f32) -> (f32, f32, f32) {
+    let s = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
+    let inv_var = (-2.0 * s).exp();
+    let d = if log_sigma == s {
         sigma_weight * (1.0 - e * e * inv_var)
     } else {
         0.0
     };
-    (loss, e, s.exp())
+    (sigma_weight * (0.5 * e * e * inv_var + s), d, s.exp())
 }
 
 /// Loss of the temporal model's correction of one mode-filter step
@@ -189,21 +206,16 @@ pub fn mode_loss(
     let e = wrap_rad(psi - truth);
     let sign = e.signum() * (e != 0.0) as i32 as f32;
     let log_sigma = 0.5 * var.max(1e-12).ln() + y[2];
-    let s = log_sigma.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
-    let inv_var = (-2.0 * s).exp();
-    let mut loss = e.abs() + sigma_weight * (0.5 * e * e * inv_var + s);
+    let (nll, dsigma, sigma) = sigma_likelihood(e, log_sigma, sigma_weight);
+    let mut loss = e.abs() + nll;
     dy[0] = sign * d * dg;
     if let (Some(r), true) = (reverse, step.moving) {
-        let z = if r { logit } else { -logit };
-        loss += REVERSE_WEIGHT * (-z.min(0.0) + (-z.abs()).exp().ln_1p());
-        dy[1] = REVERSE_WEIGHT * (sigmoid(logit) - r as i32 as f32);
+        let (l, d) = reverse_loss(logit, r);
+        loss += l;
+        dy[1] = d;
     }
-    dy[2] = if log_sigma == s {
-        sigma_weight * (1.0 - e * e * inv_var)
-    } else {
-        0.0
-    };
-    (loss, e, s.exp())
+    dy[2] = dsigma;
+    (loss, e, sigma)
 }
 
 /// The reverse label of an epoch: `Some(course opposite to the true heading)` when the

@@ -11,11 +11,10 @@ use std::sync::Arc;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
-use ghnet_lab::recipes::{self, DataSpec, Recipe};
+use ghnet_lab::make::{self, Recipe};
 use ghnet_lab::sim::{self, RealisticParams, S1Params};
-use ghnet_lab::{eval, plot, receiver_log, replay, train};
+use ghnet_lab::{receiver_log, replay};
 use ghnet_models::simd::Kernel;
-use ghnet_models::weights::{ModelMeta, FORMAT};
 use ghnet_models::{Model, Platform, Predictor, DEFAULT_MODEL};
 
 #[derive(Parser)]
@@ -293,7 +292,7 @@ fn run(cli: Cli) -> Result<()> {
             if data.is_some() || m.is_stateful() {
                 commands::eval_stream(&m, data.as_deref(), kf.as_deref(), plot.as_deref())
             } else {
-                eval_epoch(&m, out_dir)
+                commands::eval_epoch(&m, out_dir)
             }
         }
         Cmd::Infer {
@@ -303,7 +302,7 @@ fn run(cli: Cli) -> Result<()> {
             format,
             platform,
         } => infer(&load_on(&model, platform)?, &input, &output, format),
-        Cmd::Calibrate { model, output } => commands::calibrate_recipe_model(&model, &output),
+        Cmd::Calibrate { model, output } => make::temporal::calibrate_recipe_model(&model, &output),
         Cmd::Export { model, output } => {
             let m = load(&model)?;
             std::fs::write(&output, m.to_safetensors())
@@ -355,7 +354,7 @@ fn train(cmd: Cmd) -> Result<()> {
     };
     if !data.is_empty() {
         let output = output.context("--output is required with --data")?;
-        return commands::train_data(
+        return make::own::train_data(
             &data,
             &output,
             init.as_deref(),
@@ -374,14 +373,20 @@ fn train(cmd: Cmd) -> Result<()> {
     let output =
         output.unwrap_or_else(|| format!("models/inference/weights/{recipe}.safetensors").into());
     if recipe.starts_with("ghnet-temporal") {
-        return commands::train_temporal_recipe(&recipe, &output, seed, epochs, config.as_deref());
+        return make::temporal::train_temporal_recipe(
+            &recipe,
+            &output,
+            seed,
+            epochs,
+            config.as_deref(),
+        );
     }
     let mut r = Recipe::named(&recipe).with_context(|| {
             format!("unknown recipe `{recipe}` (known: paper-s1, ghnet-epoch, ghnet-temporal, ghnet-temporal-car, ghnet-temporal-tip)")
         })?;
     r.train.seed = seed.unwrap_or(r.train.seed);
     r.train.epochs = epochs.unwrap_or(r.train.epochs);
-    train_recipe(&r, &output, quiet)
+    make::train_recipe(&r, &output, quiet)
 }
 
 /// `ghnet simulate ...`.
@@ -415,41 +420,6 @@ fn simulate(which: SimCmd) -> Result<()> {
     };
     sim::write_csv(&output, &samples).with_context(|| format!("writing {}", output.display()))?;
     eprintln!("wrote {} samples to {}", samples.len(), output.display());
-    Ok(())
-}
-
-/// `ghnet eval` of a per-epoch model on its held-out data.
-fn eval_epoch(model: &Arc<Model>, out_dir: Option<PathBuf>) -> Result<()> {
-    let data: DataSpec = serde_json::from_value(model.meta().training_data.clone()).context(
-        "model metadata `training_data` does not name a simulator to regenerate its held-out data",
-    )?;
-    let max_speed = model.meta().training["eval_max_speed"]
-        .as_f64()
-        .unwrap_or(5.0);
-    let (_, _, test) = recipes::split(&data.generate());
-    let report = recipes::evaluate(model, &data, &test, max_speed)?;
-    let md = eval::to_markdown(&report);
-    let Some(dir) = out_dir else {
-        println!("{md}");
-        return Ok(());
-    };
-    std::fs::create_dir_all(&dir)?;
-    let name = model.name();
-    std::fs::write(dir.join(format!("{name}.md")), &md)?;
-    std::fs::write(
-        dir.join(format!("{name}.summary.md")),
-        eval::to_markdown_compact(&report, name, 200),
-    )?;
-    eval::write_csv(dir.join(format!("{name}.csv")), &report)?;
-    std::fs::write(
-        dir.join(format!("{name}.json")),
-        serde_json::to_string_pretty(&report)?,
-    )?;
-    plot::plot_mae_vs_speed_with(&report, dir.join(format!("{name}.svg")), plot::YScale::Log)?;
-    eprintln!(
-        "wrote {}/{name}.{{md,summary.md,csv,json,svg}}",
-        dir.display()
-    );
     Ok(())
 }
 
@@ -534,129 +504,4 @@ fn forward_stdin(m: &Model) -> Result<()> {
     }
     out.flush()?;
     Ok(())
-}
-
-/// The per-epoch progress bar of `ghnet train` (hidden with `--quiet`).
-fn progress_bar(quiet: bool, epochs: usize) -> indicatif::ProgressBar {
-    let bar = if quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(epochs as u64)
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] epoch {pos}/{len} {msg}",
-        )
-        .expect("template")
-        .progress_chars("=> "),
-    );
-    bar
-}
-
-fn train_recipe(r: &Recipe, output: &std::path::Path, quiet: bool) -> Result<()> {
-    let t0 = std::time::Instant::now();
-    let samples = r.data.generate();
-    let (tr, va, test) = recipes::split(&samples);
-    if tr.is_empty() || va.is_empty() || test.is_empty() {
-        bail!(
-            "recipe {} produced an empty train, validation or test split",
-            r.name
-        );
-    }
-    eprintln!(
-        "{}: {} train, {} validation, {} test samples ({})",
-        r.name,
-        tr.len(),
-        va.len(),
-        test.len(),
-        r.data.label()
-    );
-    let bar = progress_bar(quiet, r.train.epochs);
-    let arch = r.arch();
-    let trained = train::train(&arch, &r.head, r.input_scale_mps, &tr, &va, &r.train, |e| {
-        bar.set_position(e.epoch as u64);
-        bar.set_message(format!(
-            "loss {:.4}  val {:.4} (MAE {:.3}°)  best MAE {:.3}°  lr {:.1e}",
-            e.train_loss, e.val_loss, e.val_mae_deg, e.best_val_mae_deg, e.lr
-        ));
-        if quiet {
-            eprintln!(
-                "epoch {} loss {:.4} val {:.4} MAE {:.3} best MAE {:.3}",
-                e.epoch, e.train_loss, e.val_loss, e.val_mae_deg, e.best_val_mae_deg
-            );
-        }
-    });
-    bar.finish();
-    let (lo, hi) = r.head.range_deg();
-    let mut meta = ModelMeta {
-        format: FORMAT.into(),
-        name: r.name.clone(),
-        architecture: arch,
-        activation: "gelu_tanh".into(),
-        head: r.head,
-        input_scale_mps: r.input_scale_mps,
-        heading_range_deg: [lo, hi],
-        sigma_scale: trained.sigma_scale,
-        accuracy_sigma_scale: trained.accuracy_sigma_scale,
-        training_data: serde_json::to_value(&r.data)?,
-        training: serde_json::json!({
-            "config": r.train,
-            "best_epoch": trained.best_epoch,
-            "epochs_run": trained.epochs_run,
-            "best_val_mae_deg": trained.best_val_mae_deg,
-            "train_samples": tr.len(),
-            "val_samples": va.len(),
-            "seconds": t0.elapsed().as_secs_f64(),
-            "eval_max_speed": r.eval_max_speed,
-        }),
-        metrics: serde_json::Value::Null,
-        kind: ghnet_models::weights::ModelKind::Epoch,
-    };
-    // Measure on held-out data and store the headline numbers in the file itself.
-    let (metrics, summary) = test_metrics(&trained.params, &meta, r, &test)?;
-    meta.metrics = metrics;
-    ghnet_models::weights::write(output, &trained.params, &meta)
-        .with_context(|| format!("writing {}", output.display()))?;
-    eprintln!(
-        "{}: best epoch {} of {}, {summary}, {:.0} s -> {}",
-        r.name,
-        trained.best_epoch,
-        trained.epochs_run,
-        t0.elapsed().as_secs_f64(),
-        output.display()
-    );
-    Ok(())
-}
-
-/// A per-epoch model's metrics on its recipe's `test` samples (for its metadata) and a
-/// one-line summary.
-fn test_metrics(
-    params: &ghnet_models::params::ParamSet,
-    meta: &ModelMeta,
-    r: &Recipe,
-    test: &[ghnet_lab::sim::Sample],
-) -> Result<(serde_json::Value, String)> {
-    let model = Arc::new(Model::new(params.clone(), meta.clone()));
-    let report = recipes::evaluate(&model, &r.data, test, r.eval_max_speed)?;
-    let overall = report
-        .overall
-        .stats_of(&r.name)
-        .context("model missing from its own report")?;
-    let atan2 = report.overall.stats_of(eval::ATAN2).map(|s| s.mae_deg);
-    let metrics = serde_json::json!({
-        "test_samples": test.len(),
-        "mae_deg": overall.mae_deg,
-        "rmse_deg": overall.rmse_deg,
-        "within_1sigma": overall.within_1sigma,
-        "within_2sigma": overall.within_2sigma,
-        "atan2_mae_deg": atan2,
-    });
-    let summary = format!(
-        "test MAE {:.3}° (atan2 {:.3}°), within 1σ {:.1}%, 2σ {:.1}%",
-        overall.mae_deg,
-        atan2.unwrap_or(f64::NAN),
-        100.0 * overall.within_1sigma.unwrap_or(f64::NAN),
-        100.0 * overall.within_2sigma.unwrap_or(f64::NAN),
-    );
-    Ok((metrics, summary))
 }

@@ -37,58 +37,30 @@ struct Knob {
     range: (f32, f32),
 }
 
+/// A [`Knob`] of the [`ModeParams`] field `$field`, named after it, searched in
+/// `$lo..=$hi`.
+macro_rules! knob {
+    ($field:ident, $lo:expr, $hi:expr) => {
+        Knob {
+            name: stringify!($field),
+            get: |m| &mut m.$field,
+            range: ($lo, $hi),
+        }
+    };
+}
+
 /// The constants that depend on the platform and the receiver.
 const KNOBS: [Knob; 10] = [
-    Knob {
-        name: "q_tip_deg",
-        get: |m| &mut m.q_tip_deg,
-        range: (5.0, 360.0),
-    },
-    Knob {
-        name: "q_still_deg",
-        get: |m| &mut m.q_still_deg,
-        range: (0.05, 20.0),
-    },
-    Knob {
-        name: "tip_sigma_none",
-        get: |m| &mut m.tip_sigma_none,
-        range: (0.01, 2.0),
-    },
-    Knob {
-        name: "tip_acc_k",
-        get: |m| &mut m.tip_acc_k,
-        range: (0.2, 10.0),
-    },
-    Knob {
-        name: "sigma_none",
-        get: |m| &mut m.sigma_none,
-        range: (0.01, 2.0),
-    },
-    Knob {
-        name: "acc_k",
-        get: |m| &mut m.acc_k,
-        range: (0.2, 10.0),
-    },
-    Knob {
-        name: "noise_k",
-        get: |m| &mut m.noise_k,
-        range: (0.2, 10.0),
-    },
-    Knob {
-        name: "moving_r",
-        get: |m| &mut m.moving_r,
-        range: (0.05, 1.5),
-    },
-    Knob {
-        name: "flip_stop_deg",
-        get: |m| &mut m.flip_stop_deg,
-        range: (45.0, 180.0),
-    },
-    Knob {
-        name: "k_max",
-        get: |m| &mut m.k_max,
-        range: (0.02, 2.0),
-    },
+    knob!(q_tip_deg, 5.0, 360.0),
+    knob!(q_still_deg, 0.05, 20.0),
+    knob!(tip_sigma_none, 0.01, 2.0),
+    knob!(tip_acc_k, 0.2, 10.0),
+    knob!(sigma_none, 0.01, 2.0),
+    knob!(acc_k, 0.2, 10.0),
+    knob!(noise_k, 0.2, 10.0),
+    knob!(moving_r, 0.05, 1.5),
+    knob!(flip_stop_deg, 45.0, 180.0),
+    knob!(k_max, 0.02, 2.0),
 ];
 
 /// What [`fit_modes`] chose.

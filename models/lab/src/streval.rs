@@ -8,14 +8,14 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use ghnet_models::head::Head;
-use ghnet_models::params::{Arch, ParamSet};
 use ghnet_models::stream::{Epoch, StreamPredictor};
-use ghnet_models::weights::{ModelKind, ModelMeta};
+use ghnet_models::weights::ModelKind;
 use ghnet_models::{Model, Status};
 
+use crate::drive::Platform;
 use crate::eval::wrap_deg;
 use crate::logs::LogTrack;
+use crate::table::{fmt_opt, Markdown, Tally};
 
 /// Name of the atan2 baseline in tables.
 pub const ATAN2: &str = "atan2";
@@ -53,27 +53,6 @@ const TURN_MAX_DT: f64 = 1.5;
 /// Measured speed below which a log without true speed counts as stopped: receiver noise
 /// alone reads 0.05–0.2 m/s.
 pub const STOPPED_MEASURED: f32 = 0.2;
-
-/// A model-free Kalman filter model with these parameters (what `kf` ships as).
-pub fn kf_model(q_deg_per_sqrt_s: f32, sigma_v_mps: f32, max_gap_s: f32) -> Model {
-    let arch = Arch {
-        input: 0,
-        conv: vec![],
-        fc: vec![],
-        output: 0,
-        window: 1,
-    };
-    let kind = ModelKind::Kf {
-        q_deg_per_sqrt_s,
-        sigma_v_mps,
-        max_gap_s,
-    };
-    let head = Head::Residual {
-        range_deg: [0.0, 360.0],
-    };
-    let meta = ModelMeta::new("kf", arch.clone(), head, kind);
-    Model::new(ParamSet::zeros(&arch), meta)
-}
 
 /// One estimator's answers over a set of tracks, concatenated.
 #[derive(Debug, Clone, Serialize)]
@@ -160,24 +139,6 @@ pub fn mae(a: &Answers, tracks: &[LogTrack]) -> f64 {
     s / n.max(1) as f64
 }
 
-/// The Kalman filter tuned on `tracks` by grid search over `q` and `σ_v` (streamed MAE):
-/// the baseline's parameters, chosen on validation data only.
-pub fn tune_kf(tracks: &[LogTrack], max_gap_s: f32) -> (f32, f32, f64) {
-    let mut best = (0.0, 0.0, f64::INFINITY);
-    for q in [
-        0.5f32, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0,
-    ] {
-        for sv in [0.03f32, 0.05, 0.1, 0.2, 0.3, 0.5, 0.8, 1.2, 2.0, 3.0, 4.0] {
-            let m = Arc::new(kf_model(q, sv, max_gap_s));
-            let e = mae(&run_model(&m, tracks, "kf"), tracks);
-            if e < best.2 {
-                best = (q, sv, e);
-            }
-        }
-    }
-    best
-}
-
 /// One estimator in one band.
 #[derive(Debug, Clone, Serialize)]
 pub struct Cell {
@@ -198,6 +159,12 @@ pub struct Row {
     pub count: usize,
     /// One cell per estimator, in the table's order.
     pub cells: Vec<Cell>,
+    /// The longest run of `Held` answers of the last estimator among the row's epochs
+    /// at a measured speed of [`HELD_MOVING_SPEED`] or faster, seconds (each epoch
+    /// counts until the next, at most 1 s): a stop that outlives the motion, the
+    /// failure a filter fusing held headings cannot see. `None` for an estimator
+    /// without status.
+    pub held_moving_s: Option<f64>,
 }
 
 /// A table: rows per band plus "all".
@@ -247,13 +214,9 @@ pub struct Memory {
     pub drives_within_2sigma: Option<[f64; 3]>,
     /// Drives counted in the percentiles.
     pub drives: usize,
-    /// The longest run of `Held` answers at a measured speed of [`HELD_MOVING_SPEED`]
-    /// or faster, seconds (each epoch counts until the next, at most 1 s): a stop that outlives the
-    /// motion, the failure a filter fusing held headings cannot see.
-    pub held_moving_s: f64,
 }
 
-/// Measured speed (m/s) from which a `Held` answer counts in [`Memory::held_moving_s`].
+/// Measured speed (m/s) from which a `Held` answer counts in [`Row::held_moving_s`].
 pub const HELD_MOVING_SPEED: f32 = 1.0;
 
 /// The longest run (s) of `held` epochs at [`HELD_MOVING_SPEED`] or faster in `t`, each
@@ -305,19 +268,56 @@ impl Table {
     }
 }
 
+/// The [`Cell`] of `a` over the epochs `idx`, counted by the table engine.
 fn cell(a: &Answers, truth: &[f32], idx: &[usize]) -> Cell {
-    let n = idx.len().max(1) as f64;
-    let e = |i: usize| wrap_deg(a.heading_deg[i] - truth[i]).abs();
-    let within = |k: f32| {
-        a.std_deg
-            .as_ref()
-            .map(|s| idx.iter().filter(|&&i| e(i) <= k * s[i]).count() as f64 / n)
-    };
-    Cell {
-        mae_deg: idx.iter().map(|&i| e(i) as f64).sum::<f64>() / n,
-        within_1sigma: within(1.0),
-        within_2sigma: within(2.0),
+    let mut t = Tally::default();
+    for &i in idx {
+        let err = wrap_deg(a.heading_deg[i] - truth[i]) as f64;
+        t.add(err, a.std_deg.as_ref().map(|s| s[i] as f64));
     }
+    let t = t.tallied(a.std_deg.is_some());
+    Cell {
+        mae_deg: t.mae_deg,
+        within_1sigma: t.within_1sigma,
+        within_2sigma: t.within_2sigma,
+    }
+}
+
+/// The row `label` over the epochs `idx` (of `tracks`, concatenated): a cell per
+/// estimator and the last estimator's longest `Held` run while moving.
+fn row(
+    label: String,
+    idx: &[usize],
+    tracks: &[LogTrack],
+    answers: &[Answers],
+    truth: &[f32],
+) -> Row {
+    Row {
+        label,
+        count: idx.len(),
+        cells: answers.iter().map(|a| cell(a, truth, idx)).collect(),
+        held_moving_s: answers.last().and_then(|a| held_moving(tracks, a, idx)),
+    }
+}
+
+/// The longest run (s) of `a`'s `Held` answers among the epochs `idx` of `tracks`
+/// (concatenated) at [`HELD_MOVING_SPEED`] or faster; `None` without status.
+fn held_moving(tracks: &[LogTrack], a: &Answers, idx: &[usize]) -> Option<f64> {
+    let n: usize = tracks.iter().map(LogTrack::len).sum();
+    if a.status.len() != n {
+        return None;
+    }
+    let mut held = vec![false; n];
+    for &i in idx {
+        held[i] = a.status[i] == Status::Held;
+    }
+    let (mut start, mut longest) = (0, 0.0f64);
+    for t in tracks {
+        let s0 = start;
+        longest = longest.max(longest_held_moving(t, |i| held[s0 + i]));
+        start += t.len();
+    }
+    Some(longest)
 }
 
 /// Per epoch of `tracks` (concatenated): whether its history has seen motion, i.e.
@@ -388,25 +388,19 @@ pub fn table(
             _ if hi.is_infinite() => format!("≥{lo}"),
             _ => format!("{lo}–{hi}"),
         };
-        rows.push(Row {
-            label,
-            count: idx.len(),
-            cells: answers.iter().map(|a| cell(a, &truth, &idx)).collect(),
-        });
+        rows.push(row(label, &idx, tracks, answers, &truth));
     }
     let all: Vec<usize> = (0..truth.len()).collect();
-    rows.push(Row {
-        label: "**all**".into(),
-        count: all.len(),
-        cells: answers.iter().map(|a| cell(a, &truth, &all)).collect(),
-    });
+    rows.push(row("**all**".into(), &all, tracks, answers, &truth));
     if let Some(m) = moved {
         let after: Vec<usize> = (0..truth.len()).filter(|&i| m[i]).collect();
-        rows.push(Row {
-            label: "after first motion".into(),
-            count: after.len(),
-            cells: answers.iter().map(|a| cell(a, &truth, &after)).collect(),
-        });
+        rows.push(row(
+            "after first motion".into(),
+            &after,
+            tracks,
+            answers,
+            &truth,
+        ));
     }
     Table {
         title: title.into(),
@@ -430,11 +424,7 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
     // Each stop's first held epoch (its one error and σ), and the epochs held.
     let (mut stops, mut held_epochs) = (Vec::new(), 0);
     let mut drives = Vec::new();
-    let mut held_moving_s = 0.0f64;
     for t in tracks {
-        let s0 = start;
-        held_moving_s =
-            held_moving_s.max(longest_held_moving(t, |i| a.status[s0 + i] == Status::Held));
         if t.len() >= MIN_DRIVE_EPOCHS {
             let idx: Vec<usize> = (start..start + t.len()).collect();
             drives.push(cell(a, truth, &idx));
@@ -471,7 +461,6 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
         drives_within_1sigma: spread(|c| c.within_1sigma),
         drives_within_2sigma: spread(|c| c.within_2sigma),
         drives: drives.len(),
-        held_moving_s,
     })
 }
 
@@ -524,22 +513,90 @@ fn turn_rows(tracks: &[LogTrack], answers: &[Answers], truth: &[f32], speed: &[f
             let idx: Vec<usize> = (0..truth.len())
                 .filter(|&i| speed[i] >= TURN_MIN_SPEED && rate[i] >= lo && rate[i] < hi)
                 .collect();
-            Row {
-                label: if hi.is_infinite() {
-                    format!("≥{lo}")
-                } else {
-                    format!("{lo}–{hi}")
-                },
-                count: idx.len(),
-                cells: answers.iter().map(|a| cell(a, truth, &idx)).collect(),
-            }
+            let label = if hi.is_infinite() {
+                format!("≥{lo}")
+            } else {
+                format!("{lo}–{hi}")
+            };
+            row(label, &idx, tracks, answers, truth)
         })
         .collect()
 }
 
+/// The tables of `model` against the baselines on `tracks` (one per platform present
+/// and one for all). `kf` is the filter of every table, except the turn-in-place table
+/// when `kf_platform` (a filter tuned on such platforms) is given.
+pub fn tables(
+    model: &Arc<Model>,
+    kf: &Arc<Model>,
+    kf_platform: Option<&Arc<Model>>,
+    tracks: &[LogTrack],
+    what: &str,
+) -> Vec<Table> {
+    let mut groups: Vec<(String, Vec<LogTrack>, &Arc<Model>)> = Vec::new();
+    for (p, label) in [
+        (Platform::Car, "cars"),
+        (Platform::TurnInPlace, "turn-in-place platforms"),
+    ] {
+        let g = only(tracks, p);
+        if !g.is_empty() && g.len() < tracks.len() {
+            let f = match p {
+                Platform::TurnInPlace => kf_platform.unwrap_or(kf),
+                Platform::Car => kf,
+            };
+            groups.push((format!("{what}, {label}"), g, f));
+        }
+    }
+    groups.push((what.to_owned(), tracks.to_vec(), kf));
+    groups
+        .into_iter()
+        .map(|(title, g, kf)| {
+            let mut answers = vec![run_atan2(&g)];
+            answers.extend(run_receiver(&g));
+            answers.push(run_model(kf, &g, "kf"));
+            answers.push(run_model(model, &g, model.name()));
+            let moved = start_gate(model, kf).map(|(sv, gap)| after_first_motion(&g, sv, gap));
+            table(&title, &g, &answers, moved.as_deref())
+        })
+        .collect()
+}
+
+/// The start convention's gate (σ_v, gap limit) of a table: the temporal model's own
+/// (the σ_v of the `kf` it was made with), else `kf`'s.
+fn start_gate(model: &Model, kf: &Model) -> Option<(f32, f32)> {
+    [model, kf].iter().find_map(|m| match m.meta().kind {
+        ModelKind::Temporal {
+            sigma_v_mps,
+            max_gap_s,
+            ..
+        }
+        | ModelKind::Kf {
+            sigma_v_mps,
+            max_gap_s,
+            ..
+        } => Some((sigma_v_mps, max_gap_s)),
+        ModelKind::Epoch => None,
+    })
+}
+
+/// Tracks of one platform.
+pub fn only(tracks: &[LogTrack], p: Platform) -> Vec<LogTrack> {
+    tracks
+        .iter()
+        .filter(|t| t.platform == Some(p))
+        .cloned()
+        .collect()
+}
+
+/// Whether `m` is the Kalman filter.
+pub fn is_kf(m: &Model) -> bool {
+    matches!(m.meta().kind, ModelKind::Kf { .. })
+}
+
 /// The table as Markdown: MAE per estimator, the last estimator against atan2 and
-/// against the second-to-last (the Kalman filter, by convention), and its σ calibration;
-/// then the same columns per turn rate (see [`Table::turn_rows`]).
+/// against the second-to-last (the Kalman filter, by convention), its σ calibration and
+/// its longest `Held` run while moving ([`Row::held_moving_s`]); then the same columns
+/// per turn rate (see [`Table::turn_rows`]).
 pub fn to_markdown(t: &Table) -> String {
     let speed = format!(
         "{} speed [m/s]",
@@ -580,11 +637,6 @@ fn memory_markdown(name: &str, m: &Memory) -> String {
             100.0 * m.stops_within_2sigma
         );
     }
-    s += &format!(
-        ".\n\nLongest `Held` run of {name} at {HELD_MOVING_SPEED} m/s or faster (measured): \
-         {:.1} s",
-        m.held_moving_s
-    );
     if let (Some(a), Some(b)) = (m.drives_within_1sigma, m.drives_within_2sigma) {
         let pct = |p: [f64; 3]| {
             format!(
@@ -609,36 +661,34 @@ fn memory_markdown(name: &str, m: &Memory) -> String {
 fn rows_markdown(t: &Table, first: &str, rows: &[Row]) -> String {
     let last = t.names.len() - 1;
     let kf = t.names.iter().position(|n| n.starts_with("kf"));
-    let mut s = format!("| {first} | N |");
-    for n in &t.names {
-        s += &format!(" MAE {n} |");
-    }
-    s += &format!(" {} vs atan2 [%] |", t.names[last]);
+    let mut header = vec![first.to_owned(), "N".to_owned()];
+    header.extend(t.names.iter().map(|n| format!("MAE {n}")));
+    header.push(format!("{} vs atan2 [%]", t.names[last]));
     if kf.is_some() {
-        s += &format!(" {} vs kf [%] |", t.names[last]);
+        header.push(format!("{} vs kf [%]", t.names[last]));
     }
-    s += " ≤1σ [%] | ≤2σ [%] |\n|---|---:|";
-    s += &"---:|".repeat(t.names.len() + 3 + kf.is_some() as usize);
-    s += "\n";
+    header.extend([
+        "≤1σ [%]".to_owned(),
+        "≤2σ [%]".to_owned(),
+        format!("longest `Held` at ≥{HELD_MOVING_SPEED} m/s [s]"),
+    ]);
+    let mut table = Markdown::new(&header, true);
     for r in rows {
-        s += &format!("| {} | {} |", r.label, r.count);
-        for c in &r.cells {
-            s += &format!(" {:.2} |", c.mae_deg);
-        }
+        let mut cells = vec![r.label.clone(), r.count.to_string()];
+        cells.extend(r.cells.iter().map(|c| format!("{:.2}", c.mae_deg)));
         let m = r.cells[last].mae_deg;
         let gain = |b: f64| if b > 0.0 { 100.0 * (b - m) / b } else { 0.0 };
-        s += &format!(" {:.1} |", gain(r.cells[0].mae_deg));
+        cells.push(format!("{:.1}", gain(r.cells[0].mae_deg)));
         if let Some(k) = kf {
-            s += &format!(" {:.1} |", gain(r.cells[k].mae_deg));
+            cells.push(format!("{:.1}", gain(r.cells[k].mae_deg)));
         }
         let pct = |v: Option<f64>| v.map_or("".into(), |v| format!("{:.1}", 100.0 * v));
-        s += &format!(
-            " {} | {} |\n",
-            pct(r.cells[last].within_1sigma),
-            pct(r.cells[last].within_2sigma)
-        );
+        cells.push(pct(r.cells[last].within_1sigma));
+        cells.push(pct(r.cells[last].within_2sigma));
+        cells.push(fmt_opt(r.held_moving_s, 1));
+        table.row(&cells);
     }
-    s
+    table.finish()
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use ghnet_lab::eval::{Report, ATAN2};
-use ghnet_lab::recipes::{self, DataSpec};
+use ghnet_lab::make::epoch::{self, DataSpec};
 use ghnet_models::Model;
 
 fn close(a: f64, b: f64, what: &str) {
@@ -21,12 +21,12 @@ fn check(name: &str) {
     let meta = model.meta();
     let data: DataSpec = serde_json::from_value(meta.training_data.clone()).unwrap();
     let max_speed = meta.training["eval_max_speed"].as_f64().unwrap();
-    let (_, _, test) = recipes::split(&data.generate());
+    let (_, _, test) = epoch::split(&data.generate());
     assert_eq!(
         test.len() as u64,
         meta.metrics["test_samples"].as_u64().unwrap()
     );
-    let report = recipes::evaluate(&model, &data, &test, max_speed).unwrap();
+    let report = epoch::evaluate(&model, &data, &test, max_speed).unwrap();
     let overall = report.overall.stats_of(name).unwrap();
     close(
         overall.mae_deg,
@@ -145,13 +145,14 @@ fn committed_reports_meet_the_accuracy_bars() {
 /// against the shipped `kf`).
 #[test]
 fn temporal_model_reproduces_its_committed_numbers() {
-    use ghnet_lab::timeline::{self, TemporalRecipe};
+    use ghnet_lab::make::TemporalRecipe;
+    use ghnet_lab::streval;
     let model = Arc::new(Model::builtin("ghnet-temporal").expect("ghnet-temporal loads"));
     assert!(model.is_stateful());
     let kf = Arc::new(Model::builtin("kf").expect("kf loads"));
     let r: TemporalRecipe = serde_json::from_value(model.meta().training_data.clone()).unwrap();
     let test = r.tracks()[2].clone();
-    let tables = timeline::tables(&model, &kf, None, &test, "test");
+    let tables = streval::tables(&model, &kf, None, &test, "test");
     let all = tables.last().unwrap();
     let m = model.meta();
     close(
@@ -216,19 +217,26 @@ fn committed_real_drive_report_meets_the_bars() {
         env!("CARGO_MANIFEST_DIR")
     ))
     .unwrap();
+    // The first table's columns by header, and its overall row.
+    let split = |l: &str| -> Vec<String> {
+        let l = l.trim().trim_start_matches('|').trim_end_matches('|');
+        l.split('|').map(|c| c.trim().to_owned()).collect()
+    };
+    let header = split(text.lines().find(|l| l.starts_with('|')).expect("a table"));
     let row = text
         .lines()
         .find(|l| l.starts_with("| **all** |"))
         .expect("the report's overall row");
-    let cells: Vec<f64> = row
-        .split('|')
-        .skip(2)
-        .filter_map(|c| c.trim().parse().ok())
-        .collect();
-    // N, atan2, kf, model, vs atan2 %, vs kf %, within 1σ %, within 2σ %.
-    let [n, atan2, kf, model, _, _, s1, s2] = cells[..] else {
-        panic!("unexpected overall row: {row}");
+    let cells = split(row);
+    let col = |name: &str| -> f64 {
+        let k = header.iter().position(|h| h == name);
+        let k = k.unwrap_or_else(|| panic!("no column `{name}` in {header:?}"));
+        cells[k]
+            .parse()
+            .unwrap_or_else(|_| panic!("`{name}` in {row}"))
     };
+    let (n, atan2, kf) = (col("N"), col("MAE atan2"), col("MAE kf"));
+    let (model, s1, s2) = (col("MAE ghnet-temporal"), col("≤1σ [%]"), col("≤2σ [%]"));
     assert!(n > 1000.0, "{n} epochs");
     assert!(model <= 0.9 * kf && model <= 0.8 * atan2, "{row}");
     assert!((60.0..=76.0).contains(&s1), "{s1}% within 1σ");

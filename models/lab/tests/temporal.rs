@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use ghnet_lab::drive::{self, DriveParams};
 use ghnet_lab::logs::{self, LogTrack};
-use ghnet_lab::streval::kf_model;
+use ghnet_lab::make::kf::kf_model;
 use ghnet_lab::temporal::{self, TemporalConfig};
 
 fn small_drive(seed: u64) -> Vec<drive::Track> {

@@ -1,18 +1,24 @@
-//! How the shipped models are made and judged: data, head, scaling and hyper-parameters
-//! for `paper-s1` and `ghnet-epoch`, and the held-out evaluation of any model.
+//! How the per-epoch models are made and judged: data, head, scaling and
+//! hyper-parameters for `paper-s1` and `ghnet-epoch`, their training run, and the
+//! held-out evaluation of any model.
 //!
 //! A model file records in its `training_data` metadata which simulator, parameters and
 //! seed produced it, so `ghnet eval --model X` regenerates exactly its held-out split
 //! (test tracks or test grid points that training never saw) without shipping data.
 
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
 use crate::bayes::BayesS1;
 use crate::eval::{self, Estimate, EvalConfig, Report, Truth};
 use crate::sim::{self, RealisticParams, S1Params, Sample, Split};
-use crate::train::{Dataset, TrainConfig};
+use crate::train::{self, Dataset, TrainConfig};
 use ghnet_models::head::Head;
 use ghnet_models::model::{Model, Predictor};
+use ghnet_models::weights::{ModelMeta, FORMAT};
 use ghnet_models::Arch;
 
 /// Which simulator made a data set, with its parameters and seed.
@@ -190,4 +196,132 @@ pub fn evaluate(
         ..EvalConfig::default()
     };
     eval::evaluate(&Truth::from_samples(test), &estimates, &cfg)
+}
+
+/// The per-epoch progress bar of `ghnet train` (hidden with `--quiet`).
+fn progress_bar(quiet: bool, epochs: usize) -> indicatif::ProgressBar {
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(epochs as u64)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] epoch {pos}/{len} {msg}",
+        )
+        .expect("template")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// `ghnet train --recipe paper-s1|ghnet-epoch`: generate the recipe's data, train, fit
+/// the σ scales, measure on the held-out split and write the model with those metrics
+/// in its metadata (so `ghnet info` shows them without the data).
+pub fn train_recipe(r: &Recipe, output: &Path, quiet: bool) -> Result<()> {
+    let t0 = std::time::Instant::now();
+    let samples = r.data.generate();
+    let (tr, va, test) = split(&samples);
+    if tr.is_empty() || va.is_empty() || test.is_empty() {
+        bail!(
+            "recipe {} produced an empty train, validation or test split",
+            r.name
+        );
+    }
+    eprintln!(
+        "{}: {} train, {} validation, {} test samples ({})",
+        r.name,
+        tr.len(),
+        va.len(),
+        test.len(),
+        r.data.label()
+    );
+    let bar = progress_bar(quiet, r.train.epochs);
+    let arch = r.arch();
+    let trained = train::train(&arch, &r.head, r.input_scale_mps, &tr, &va, &r.train, |e| {
+        bar.set_position(e.epoch as u64);
+        bar.set_message(format!(
+            "loss {:.4}  val {:.4} (MAE {:.3}°)  best MAE {:.3}°  lr {:.1e}",
+            e.train_loss, e.val_loss, e.val_mae_deg, e.best_val_mae_deg, e.lr
+        ));
+        if quiet {
+            eprintln!(
+                "epoch {} loss {:.4} val {:.4} MAE {:.3} best MAE {:.3}",
+                e.epoch, e.train_loss, e.val_loss, e.val_mae_deg, e.best_val_mae_deg
+            );
+        }
+    });
+    bar.finish();
+    let (lo, hi) = r.head.range_deg();
+    let mut meta = ModelMeta {
+        format: FORMAT.into(),
+        name: r.name.clone(),
+        architecture: arch,
+        activation: "gelu_tanh".into(),
+        head: r.head,
+        input_scale_mps: r.input_scale_mps,
+        heading_range_deg: [lo, hi],
+        sigma_scale: trained.sigma_scale,
+        accuracy_sigma_scale: trained.accuracy_sigma_scale,
+        training_data: serde_json::to_value(&r.data)?,
+        training: serde_json::json!({
+            "config": r.train,
+            "best_epoch": trained.best_epoch,
+            "epochs_run": trained.epochs_run,
+            "best_val_mae_deg": trained.best_val_mae_deg,
+            "train_samples": tr.len(),
+            "val_samples": va.len(),
+            "seconds": t0.elapsed().as_secs_f64(),
+            "eval_max_speed": r.eval_max_speed,
+        }),
+        metrics: serde_json::Value::Null,
+        kind: ghnet_models::weights::ModelKind::Epoch,
+    };
+    // Measure on held-out data and store the headline numbers in the file itself.
+    let (metrics, summary) = test_metrics(&trained.params, &meta, r, &test)?;
+    meta.metrics = metrics;
+    ghnet_models::weights::write(output, &trained.params, &meta)
+        .with_context(|| format!("writing {}", output.display()))?;
+    eprintln!(
+        "{}: best epoch {} of {}, {summary}, {:.0} s -> {}",
+        r.name,
+        trained.best_epoch,
+        trained.epochs_run,
+        t0.elapsed().as_secs_f64(),
+        output.display()
+    );
+    Ok(())
+}
+
+/// A per-epoch model's metrics on its recipe's `test` samples (for its metadata) and a
+/// one-line summary.
+fn test_metrics(
+    params: &ghnet_models::params::ParamSet,
+    meta: &ModelMeta,
+    r: &Recipe,
+    test: &[crate::sim::Sample],
+) -> Result<(serde_json::Value, String)> {
+    let model = Arc::new(Model::new(params.clone(), meta.clone()));
+    let report = evaluate(&model, &r.data, test, r.eval_max_speed)?;
+    let overall = report
+        .overall
+        .stats_of(&r.name)
+        .context("model missing from its own report")?;
+    let atan2 = report.overall.stats_of(eval::ATAN2).map(|s| s.mae_deg);
+    let metrics = serde_json::json!({
+        "test_samples": test.len(),
+        "mae_deg": overall.mae_deg,
+        "rmse_deg": overall.rmse_deg,
+        "within_1sigma": overall.within_1sigma,
+        "within_2sigma": overall.within_2sigma,
+        "atan2_mae_deg": atan2,
+    });
+    let summary = format!(
+        "test MAE {:.3}° (atan2 {:.3}°), within 1σ {:.1}%, 2σ {:.1}%",
+        overall.mae_deg,
+        atan2.unwrap_or(f64::NAN),
+        100.0 * overall.within_1sigma.unwrap_or(f64::NAN),
+        100.0 * overall.within_2sigma.unwrap_or(f64::NAN),
+    );
+    Ok((metrics, summary))
 }

@@ -1,0 +1,71 @@
+//! The Kalman filter baseline as a model: its parameters, and its tuning by grid search
+//! on validation tracks (never on the tracks of a table it is compared in).
+
+use std::sync::Arc;
+
+use ghnet_models::head::Head;
+use ghnet_models::params::{Arch, ParamSet};
+use ghnet_models::weights::{ModelKind, ModelMeta};
+use ghnet_models::Model;
+
+use crate::logs::LogTrack;
+use crate::streval::{mae, run_model};
+
+/// The Kalman filter has no network: no layers, and a window of the current epoch.
+const NO_NETWORK: Arch = Arch {
+    input: 0,
+    conv: Vec::new(),
+    fc: Vec::new(),
+    output: 0,
+    window: 1,
+};
+
+/// A model-free Kalman filter model with these parameters (what `kf` ships as).
+pub fn kf_model(q_deg_per_sqrt_s: f32, sigma_v_mps: f32, max_gap_s: f32) -> Model {
+    let arch = NO_NETWORK;
+    let kind = ModelKind::Kf {
+        q_deg_per_sqrt_s,
+        sigma_v_mps,
+        max_gap_s,
+    };
+    let head = Head::Residual {
+        range_deg: [0.0, 360.0],
+    };
+    let meta = ModelMeta::new("kf", arch.clone(), head, kind);
+    Model::new(ParamSet::zeros(&arch), meta)
+}
+
+/// The Kalman filter tuned on `tracks` by grid search over `q` and `σ_v` (streamed MAE):
+/// the baseline's parameters, chosen on validation data only.
+pub fn tune_kf(tracks: &[LogTrack], max_gap_s: f32) -> (f32, f32, f64) {
+    let mut best = (0.0, 0.0, f64::INFINITY);
+    for q in [
+        0.5f32, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0,
+    ] {
+        for sv in [0.03f32, 0.05, 0.1, 0.2, 0.3, 0.5, 0.8, 1.2, 2.0, 3.0, 4.0] {
+            let m = Arc::new(kf_model(q, sv, max_gap_s));
+            let e = mae(&run_model(&m, tracks, "kf"), tracks);
+            if e < best.2 {
+                best = (q, sv, e);
+            }
+        }
+    }
+    best
+}
+
+/// The Kalman filter tuned on `val`, as a model.
+pub fn tuned_kf(val: &[LogTrack], max_gap_s: f32) -> (Model, f64) {
+    let (q, sv, mae) = tune_kf(val, max_gap_s);
+    let mut m = kf_model(q, sv, max_gap_s);
+    let meta = {
+        let mut meta = m.meta().clone();
+        meta.training = serde_json::json!({
+            "tuned_on": "validation tracks of the ghnet-temporal recipe (simulated drives)",
+            "val_mae_deg": mae,
+            "grid": "q in 0.5..120 deg/sqrt(s), sigma_v in 0.03..4 m/s",
+        });
+        meta
+    };
+    m = Model::new(m.params().clone(), meta);
+    (m, mae)
+}
