@@ -29,8 +29,7 @@ python3 - <<'PY'
 import re, pathlib
 readme = pathlib.Path("models/README.md")
 text = readme.read_text()
-for name, file in (("paper-s1", "paper-s1.summary.md"), ("ghnet-epoch", "ghnet-epoch.summary.md"),
-                   ("ghnet-temporal", "ghnet-temporal.md"), ("car-nagoya", "car-nagoya.md")):
+for name, file in (("ghnet-temporal", "ghnet-temporal.md"), ("car-nagoya", "car-nagoya.md")):
     table = pathlib.Path(f"models/reports/{file}").read_text().strip()
     text = re.sub(rf"(<!-- results:{name} -->\n).*?(\n<!-- /results:{name} -->)",
                   lambda m: m.group(1) + table + m.group(2), text, flags=re.S)
