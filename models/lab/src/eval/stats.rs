@@ -135,7 +135,7 @@ impl Default for EvalConfig {
     }
 }
 
-/// Errors of [`evaluate`] and [`write_csv`].
+/// Errors of [`evaluate`] and [`write_csv`](super::write_csv).
 #[derive(Debug, thiserror::Error)]
 pub enum EvalError {
     /// An estimator or the truth does not have one value per sample.
