@@ -10,7 +10,7 @@
 //! - [`loss`]: the losses that train the output heads, with their gradients.
 //! - [`make`]: where models are made: each recipe (per-epoch, temporal, the Kalman
 //!   filter, users' own logs) from data through training and σ maps to the written
-//!   file; [`ownlogs`]: the mode filter fitted to users' logs.
+//!   file.
 //! - [`train`]: forward/backward of every layer, AdamW, early stopping, σ calibration.
 //! - [`temporal`]: training the temporal model as a learned filter step on its own
 //!   recorded outputs, and fitting its σ maps.
@@ -32,7 +32,6 @@ pub mod eval;
 pub mod logs;
 pub mod loss;
 pub mod make;
-pub mod ownlogs;
 pub mod plot;
 pub mod receiver_log;
 pub mod replay;

@@ -275,7 +275,7 @@ fn cell(a: &Answers, truth: &[f32], idx: &[usize]) -> Cell {
         let err = wrap_deg(a.heading_deg[i] - truth[i]) as f64;
         t.add(err, a.std_deg.as_ref().map(|s| s[i] as f64));
     }
-    let t = t.tallied(a.std_deg.is_some());
+    let t = t.stats(&a.name, a.std_deg.is_some());
     Cell {
         mae_deg: t.mae_deg,
         within_1sigma: t.within_1sigma,

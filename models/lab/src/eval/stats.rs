@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::sim::Sample;
+pub use crate::table::EstimatorStats;
 use crate::table::Tally;
 
 /// Default name of the model-free baseline, ψ = atan2(v_E, v_N).
@@ -135,7 +136,7 @@ impl Default for EvalConfig {
     }
 }
 
-/// Errors of [`evaluate`] and [`write_csv`].
+/// Errors of [`evaluate`] and [`write_csv`](super::write_csv).
 #[derive(Debug, thiserror::Error)]
 pub enum EvalError {
     /// An estimator or the truth does not have one value per sample.
@@ -179,25 +180,6 @@ pub enum EvalError {
         #[source]
         source: csv::Error,
     },
-}
-
-/// Error statistics of one estimator over one group of samples.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct EstimatorStats {
-    /// Estimator name.
-    pub name: String,
-    /// Mean absolute wrapped error (deg) (also the mean of the band in the plot).
-    pub mae_deg: f64,
-    /// Root mean square wrapped error (deg).
-    pub rmse_deg: f64,
-    /// Standard deviation of the absolute wrapped error (deg) (population, ÷N): the
-    /// half-width of the band in the paper's Fig. 7.
-    pub abs_err_std_deg: f64,
-    /// Share (0..1) of samples whose |error| ≤ the reported 1σ; None without σ.
-    /// A Gaussian, well calibrated σ gives 0.683.
-    pub within_1sigma: Option<f64>,
-    /// Share (0..1) of samples whose |error| ≤ 2σ; Gaussian: 0.954.
-    pub within_2sigma: Option<f64>,
 }
 
 /// Whether a comparison is a gain over a baseline or a distance to the optimum.
@@ -275,19 +257,6 @@ pub struct Report {
     pub overall: Row,
 }
 
-/// [`EstimatorStats`] named `name` from a tally.
-fn stats_of(t: &Tally, name: &str) -> EstimatorStats {
-    let t = t.tallied(t.has_sigma());
-    EstimatorStats {
-        name: name.to_owned(),
-        mae_deg: t.mae_deg,
-        rmse_deg: t.rmse_deg,
-        abs_err_std_deg: t.abs_err_std_deg,
-        within_1sigma: t.within_1sigma,
-        within_2sigma: t.within_2sigma,
-    }
-}
-
 /// Samples of one group: per-estimator sums plus the speeds.
 #[derive(Clone)]
 struct Group {
@@ -334,7 +303,7 @@ fn make_row(
         .accs
         .iter()
         .zip(names)
-        .map(|(a, n)| stats_of(a, n))
+        .map(|(a, n)| a.stats(n, a.has_sigma()))
         .collect();
     let find = |n: &str| stats.iter().find(|s| s.name == n);
     let mut comparisons = Vec::new();

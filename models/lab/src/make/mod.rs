@@ -9,7 +9,8 @@
 //!   learned filter step ([`crate::temporal`]), σ maps fitted, tables printed; and
 //!   `ghnet calibrate`, which refits the σ maps alone.
 //! - [`kf`]: the Kalman filter baseline as a model, tuned on validation tracks.
-//! - [`own`]: models fitted to users' own logs (`ghnet train --data`).
+//! - [`own`]: models fitted to users' own logs (`ghnet train --data`), with the mode
+//!   filter's constants fitted to them first ([`modes`]).
 //!
 //! Every model file records in its `training_data` metadata which simulator,
 //! parameters and seed produced it, so `ghnet eval --model X` regenerates exactly its
@@ -17,6 +18,7 @@
 
 pub mod epoch;
 pub mod kf;
+pub mod modes;
 pub mod own;
 pub mod temporal;
 

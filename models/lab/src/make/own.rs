@@ -12,16 +12,16 @@ use ghnet_models::weights::{ModelMeta, FORMAT};
 use ghnet_models::{Arch, Model};
 
 use super::kf::kf_model;
+use super::modes::{fit_modes, mae_with, modes_of, with_modes};
 use super::temporal::train_logged;
 use crate::logs::{self, LogTrack};
-use crate::ownlogs;
 use crate::streval;
 use crate::temporal::TemporalConfig;
 use crate::train::{self, Dataset, TrainConfig};
 
 /// `ghnet train --data ...`: the shipped model (or `--init`) fitted to the user's logs.
 /// First what depends on the platform and the receiver (the mode filter's constants,
-/// [`crate::ownlogs::fit_modes`]) on the training part, kept only if the held-out
+/// [`fit_modes`]) on the training part, kept only if the held-out
 /// part (the last 20% of each track) agrees; then the network fine-tuned and the σ maps
 /// fitted; the result is written only if it beats the starting model on the held-out
 /// part (else the starting model is, with a note). A log of minutes cannot train the
@@ -59,10 +59,10 @@ pub fn train_data(
             "{n} training epochs (fewer than {MIN_FINE_TUNE_EPOCHS}): the network and its σ maps \
              stay as they are, only the mode filter is fitted"
         );
-        ownlogs::with_modes(&base, cfg.modes)
+        with_modes(&base, cfg.modes)
     };
-    let base_va = ownlogs::mae_with(&base, ownlogs::modes_of(&base), &va);
-    let new_va = ownlogs::mae_with(&trained, cfg.modes, &va);
+    let base_va = mae_with(&base, modes_of(&base), &va);
+    let new_va = mae_with(&trained, cfg.modes, &va);
     eprintln!(
         "held-out part: {new_va:.2}° fitted against {base_va:.2}° for {} as it is",
         base.name()
@@ -122,9 +122,9 @@ fn own_config(
         bail!("--init {}: not a temporal model", base.name());
     };
     let t0 = std::time::Instant::now();
-    let fitted = ownlogs::fit_modes(base, tr, platform);
-    let before = ownlogs::mae_with(base, modes, va);
-    let after = ownlogs::mae_with(base, fitted.modes, va);
+    let fitted = fit_modes(base, tr, platform);
+    let before = mae_with(base, modes, va);
+    let after = mae_with(base, fitted.modes, va);
     eprintln!(
         "mode filter fitted in {:.1} s: training part {:.2}° → {:.2}°, held-out part {before:.2}° → {after:.2}°",
         t0.elapsed().as_secs_f64(),

@@ -1,6 +1,6 @@
 //! GNSS velocity simulation: the paper's S1 grid and a realistic consumer receiver.
 //!
-//! Both generators are seeded ([`ChaCha8Rng::seed_from_u64`]) so that a data set is
+//! Both generators are seeded ([`ChaCha8Rng::seed_from_u64`](rand::SeedableRng::seed_from_u64)) so that a data set is
 //! reproduced from `(parameters, seed)` alone; the same inputs give byte-identical CSV.
 //! Conventions: velocities in NED (north, east, down) in m/s; heading ψ in degrees
 //! clockwise from true north, ψ = atan2(v_E, v_N) wrapped to [0, 360).

@@ -239,7 +239,7 @@ const BAR_1SIGMA_MAX: f64 = 0.76;
 /// the σ that puts a share `a` of the errors within 1σ, raised if needed so that a
 /// share `b` falls within 2σ; made non-decreasing (pool adjacent violators). `(a, b)`
 /// are searched so that overall `target_2sigma` of the errors fall within 2σ and the
-/// share within 1σ is as near [`TARGET_1SIGMA`] as that allows: heavy tails (a
+/// share within 1σ is as near `TARGET_1SIGMA` as that allows: heavy tails (a
 /// direction misread costs 180°) make a single Gaussian scale miss one of the two.
 /// With weights other than 1, the shares are reached under those weights and, per
 /// epoch, the 2σ share must still reach the bar and the 1σ share stay under it.

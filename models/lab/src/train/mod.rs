@@ -3,7 +3,7 @@
 //!
 //! Everything is single-threaded (`Par::Seq`) and seeded, so the same data, config and
 //! seed give bit-identical weights on the same machine. The layers' forward and backward
-//! passes are in [`layers`]'s kernels, re-exported here.
+//! passes are the layer kernels of the `layers` module, re-exported here.
 
 use faer::Mat;
 use rand::seq::SliceRandom;
