@@ -1,11 +1,14 @@
-//! Per-sample logic without IPC: input checks, sequence/time bookkeeping, the model
-//! call and the mapping to the wire. Kept apart from the event loop so it is tested
-//! directly, and so the hot path is visibly allocation-free.
+//! The wire side of a source's samples: [`Counters`], the conversion between the
+//! wire and the rules of `ghnet_models::source` (which decide what happens to each
+//! sample, the same in ghnetd and `ghnet infer`), the per-epoch batch path and the
+//! `Stale` message. No IPC: kept apart from the event loop so it is tested directly,
+//! and so the hot path is visibly allocation-free.
 
 use ghnet_client::{flags, HeadingEstimate, HeadingStatus, VelocitySample, MODEL_NAME_LEN};
-use ghnet_models::{Prediction, Predictor, Status};
+use ghnet_models::{
+    Admission, Prediction, Predictor, Runner, Sample, SampleCounts, SourceStream, Status,
+};
 use serde::Serialize;
-
 /// Counters of one source. Every received sample is answered exactly once (unless
 /// the send itself fails), so `received == answered + send_errors` at all times;
 /// `Stale` messages are counted apart (`stale`).
@@ -60,13 +63,30 @@ impl Counters {
         self.resets_backwards = self.resets_backwards.saturating_add(o.resets_backwards);
         self.resets_restart = self.resets_restart.saturating_add(o.resets_restart);
     }
+
+    /// The rules' counts and the daemon's own delivery counts, as one set.
+    fn of(c: &SampleCounts, d: &Delivery) -> Self {
+        Counters {
+            received: c.received,
+            answered: d.answered,
+            invalid: c.invalid,
+            gaps: c.gaps,
+            duplicates: c.duplicates,
+            backwards: c.backwards,
+            send_errors: d.send_errors,
+            stale: d.stale,
+            resets_gap: c.resets_gap,
+            resets_backwards: c.resets_backwards,
+            resets_restart: c.resets_restart,
+        }
+    }
 }
 
 /// The message that tells consumers a source went silent: the sequence number and
 /// timestamp of `last` (the last answer, so of the last sample received), status
 /// `Stale`, every measured field NaN and `processing_ns` 0, since no sample was
 /// processed. Consumers that match answers to samples skip it.
-pub fn stale_message(last: &HeadingEstimate) -> HeadingEstimate {
+pub(crate) fn stale_message(last: &HeadingEstimate) -> HeadingEstimate {
     HeadingEstimate {
         processing_ns: 0,
         heading_deg: f32::NAN,
@@ -78,192 +98,148 @@ pub fn stale_message(last: &HeadingEstimate) -> HeadingEstimate {
     }
 }
 
-/// Input limits besides the model's own (which checks horizontal speed itself).
-#[derive(Debug, Clone, Copy)]
-pub struct Limits {
-    /// Largest accepted 3-D speed, m/s (`model.max_speed`).
-    pub max_speed: f32,
-}
-
 /// What the model answers with, copied once per source so the hot path does not
 /// touch the model's strings.
 #[derive(Debug, Clone, Copy)]
-pub struct ModelTag {
+pub(crate) struct ModelTag {
     /// [`HeadingEstimate::model_id`].
-    pub id: u32,
+    pub(crate) id: u32,
     /// [`HeadingEstimate::model_name`].
-    pub name: [u8; MODEL_NAME_LEN],
+    pub(crate) name: [u8; MODEL_NAME_LEN],
 }
 
-/// How a sample's sequence number follows the previous sample's of its source.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Sequence {
-    /// No previous sample (the source is new, or came back).
-    First,
-    /// Higher: the normal case (with a gap if it is more than one higher).
-    Next,
-    /// The same: a repeated sample.
-    Repeat,
-    /// Lower: the publisher restarted its counter (or reordered).
-    Lower,
+/// What only the daemon counts of a source: what became of its answers.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(crate) struct Delivery {
+    /// Answers published on every output.
+    pub(crate) answered: u64,
+    /// Answers some output could not take.
+    pub(crate) send_errors: u64,
+    /// `Stale` messages published.
+    pub(crate) stale: u64,
 }
 
-/// What [`Tracker::book_detailed`] found about a sample.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Booked {
-    /// The model may see it (`false`: answered `InvalidInput`).
-    pub model: bool,
-    /// How its sequence number follows the previous one.
-    pub sequence: Sequence,
-    /// Its timestamp is below the previous sample's.
-    pub backwards: bool,
-}
-
-/// Per-source state: the previous sample's sequence number and timestamp, and the
-/// counters.
-#[derive(Debug, Clone, Default)]
-pub struct Tracker {
-    last: Option<(u64, u64)>,
-    /// The counters so far.
-    pub counters: Counters,
+/// One source's bookkeeping: its rules and history ([`SourceStream`]) and what became
+/// of its answers ([`Delivery`]).
+#[derive(Debug, Clone)]
+pub(crate) struct Tracker {
+    pub(crate) stream: SourceStream,
+    pub(crate) delivery: Delivery,
 }
 
 impl Tracker {
-    /// A tracker that continues earlier counters (a source that comes back) but
-    /// forgets the previous sample (a new publisher may restart its sequence).
-    pub fn resume(counters: Counters) -> Self {
+    /// A source answered through `stream` that continues earlier `counters` (a source
+    /// that comes back keeps its totals; its sequence and history start afresh).
+    pub(crate) fn resume(stream: SourceStream, counters: Counters) -> Self {
+        let c = counters;
+        let counts = SampleCounts {
+            received: c.received,
+            invalid: c.invalid,
+            gaps: c.gaps,
+            duplicates: c.duplicates,
+            backwards: c.backwards,
+            resets_gap: c.resets_gap,
+            resets_backwards: c.resets_backwards,
+            resets_restart: c.resets_restart,
+        };
+        let delivery = Delivery {
+            answered: c.answered,
+            send_errors: c.send_errors,
+            stale: c.stale,
+        };
         Self {
-            last: None,
-            counters,
+            stream: stream.resume(counts),
+            delivery,
         }
     }
 
-    /// Books `s` and computes its answer. `processing_ns` is left at 0 for the caller,
-    /// who measures around the whole path.
-    pub fn answer(
+    /// The counters so far.
+    pub(crate) fn counters(&self) -> Counters {
+        Counters::of(self.stream.counts(), &self.delivery)
+    }
+
+    /// Answers `s` with `runner`. `processing_ns` is left at 0 for the caller, who
+    /// measures around the whole path.
+    pub(crate) fn answer(
         &mut self,
         s: &VelocitySample,
-        predictor: &mut Predictor,
-        limits: &Limits,
+        runner: &mut Runner,
         tag: &ModelTag,
     ) -> HeadingEstimate {
-        // The receiver's speed accuracy (NaN when unknown) lets full-circle models
-        // report this receiver's σ rather than an average receiver's.
-        let prediction = self
-            .book(s, limits)
-            .then(|| predictor.predict_with_accuracy(s.v_north, s.v_east, s.speed_accuracy));
-        self.finish(s, prediction, tag)
-    }
-
-    /// First half of [`answer`](Self::answer), for callers that run the model on many
-    /// samples in one call (`Predictor::predict_batch_with_accuracy` costs about half
-    /// per sample): books `s` (counters, sequence, time) and says whether the model
-    /// should see it. `false` means the answer is `InvalidInput` without a prediction.
-    /// Book samples in arrival order, then [`finish`](Self::finish) each.
-    pub fn book(&mut self, s: &VelocitySample, limits: &Limits) -> bool {
-        self.book_detailed(s, limits).model
-    }
-
-    /// [`book`](Self::book), also telling how `s` follows the previous sample: what a
-    /// source's history needs to know (a restarted publisher, a repeated sample, time
-    /// going backwards).
-    pub fn book_detailed(&mut self, s: &VelocitySample, limits: &Limits) -> Booked {
-        self.counters.received += 1;
-        let mut booked = Booked {
-            model: false,
-            sequence: Sequence::First,
-            backwards: false,
-        };
-        if let Some((last_seq, last_ts)) = self.last {
-            booked.sequence = match s.seq.cmp(&last_seq) {
-                std::cmp::Ordering::Greater => Sequence::Next,
-                std::cmp::Ordering::Equal => Sequence::Repeat,
-                std::cmp::Ordering::Less => Sequence::Lower,
-            };
-            if s.seq > last_seq {
-                // Saturating: a publisher may jump to u64::MAX and back, and a debug
-                // build must not panic on what a remote process sends.
-                self.counters.gaps = self.counters.gaps.saturating_add(s.seq - last_seq - 1);
-            } else {
-                self.counters.duplicates += 1;
-            }
-            booked.backwards = s.timestamp_ns < last_ts;
-        }
-        // Always move on to this sample: one outlier then costs at most one more
-        // flagged sample instead of poisoning the rest of the stream.
-        self.last = Some((s.seq, s.timestamp_ns));
-
-        if booked.backwards {
-            self.counters.backwards += 1;
-        } else {
-            booked.model = input_ok(s, limits);
-        }
-        booked
-    }
-
-    /// Second half of [`answer`](Self::answer): the answer to `s` from the model's
-    /// `prediction` (`None` when [`book`](Self::book) said the model must not see it).
-    /// `processing_ns` is left at 0.
-    pub fn finish(
-        &mut self,
-        s: &VelocitySample,
-        prediction: Option<Prediction>,
-        tag: &ModelTag,
-    ) -> HeadingEstimate {
-        let (heading_deg, heading_std_deg, atan2_deg, speed, status) = match prediction {
-            Some(Prediction {
-                heading_deg,
-                std_deg,
-                atan2_deg,
-                speed,
-                status,
-            }) if status != Status::Invalid => {
-                (heading_deg, std_deg, atan2_deg, speed, wire_status(status))
-            }
-            _ => {
-                self.counters.invalid += 1;
-                let nan = f32::NAN;
-                // The wire contract: NaN when a horizontal component is not finite
-                // (hypot would give +inf for an infinite one); otherwise the speed,
-                // which tells a consumer why e.g. a glitch above max_speed was refused.
-                let finite = s.v_north.is_finite() && s.v_east.is_finite();
-                let speed = if finite {
-                    s.v_north.hypot(s.v_east)
-                } else {
-                    nan
-                };
-                (nan, nan, nan, speed, HeadingStatus::InvalidInput)
-            }
-        };
-
-        HeadingEstimate {
-            timestamp_ns: s.timestamp_ns,
-            seq: s.seq,
-            processing_ns: 0,
-            heading_deg,
-            heading_std_deg,
-            atan2_deg,
-            speed,
-            model_id: tag.id,
-            status: status.as_u32(),
-            model_name: tag.name,
-        }
+        let p = runner.answer(&mut self.stream, &sample(s));
+        estimate(s, &p, tag)
     }
 }
 
-/// Scratch of the batch path, made once (per daemon) so answering a batch allocates
-/// nothing. Per batch: [`clear`](Self::clear), fill [`samples`](Self::samples) (up to
-/// the capacity given to [`Batch::new`]), then three steps, each sample on its own
-/// source's tracker (the samples may come from several sources):
-/// [`book`](Self::book) every sample in order, one [`predict`](Self::predict),
-/// [`finish`](Self::finish) every sample.
+/// The rules' view of a wire sample: time in seconds from `timestamp_ns` (what the
+/// model sees), the down velocity 0 when the receiver does not know it.
+pub(crate) fn sample(s: &VelocitySample) -> Sample {
+    let down_known = s.flags & flags::V_DOWN_UNKNOWN == 0;
+    Sample {
+        seq: s.seq,
+        t_s: s.timestamp_ns as f64 * 1e-9,
+        v_north: s.v_north,
+        v_east: s.v_east,
+        v_down: if down_known { s.v_down } else { 0.0 },
+        speed_acc: s.speed_accuracy,
+        flagged: s.flags & flags::INVALID != 0,
+    }
+}
+
+/// The answer to `s` on the wire, from its prediction `p`. `processing_ns` is left
+/// at 0.
+pub(crate) fn estimate(s: &VelocitySample, p: &Prediction, tag: &ModelTag) -> HeadingEstimate {
+    let (heading_deg, heading_std_deg, atan2_deg, speed, status) = match p.status {
+        Status::Invalid => {
+            let nan = f32::NAN;
+            // The wire contract: NaN when a horizontal component is not finite
+            // (hypot would give +inf for an infinite one); otherwise the speed,
+            // which tells a consumer why e.g. a glitch above max_speed was refused.
+            let finite = s.v_north.is_finite() && s.v_east.is_finite();
+            let speed = if finite {
+                s.v_north.hypot(s.v_east)
+            } else {
+                nan
+            };
+            (nan, nan, nan, speed, HeadingStatus::InvalidInput)
+        }
+        st => (
+            p.heading_deg,
+            p.std_deg,
+            p.atan2_deg,
+            p.speed,
+            wire_status(st),
+        ),
+    };
+    HeadingEstimate {
+        timestamp_ns: s.timestamp_ns,
+        seq: s.seq,
+        processing_ns: 0,
+        heading_deg,
+        heading_std_deg,
+        atan2_deg,
+        speed,
+        model_id: tag.id,
+        status: status.as_u32(),
+        model_name: tag.name,
+    }
+}
+
+/// Scratch of the per-epoch batch path, made once (per daemon) so answering a batch
+/// allocates nothing. Per batch: [`clear`](Self::clear), fill
+/// [`samples`](Self::samples) (up to the capacity given to [`Batch::new`]), then three
+/// steps, each sample on its own source's tracker (the samples may come from several
+/// sources): [`book`](Self::book) every sample in order, one
+/// [`predict`](Self::predict), [`finish`](Self::finish) every sample.
 #[derive(Debug)]
-pub struct Batch {
+pub(crate) struct Batch {
     /// The samples to answer, in arrival order per source.
-    pub samples: Vec<VelocitySample>,
-    /// Per sample: its row in the model inputs, or [`Self::NO_MODEL`] (answered
-    /// `InvalidInput` without a prediction).
+    pub(crate) samples: Vec<VelocitySample>,
+    /// Per sample: its row in the model inputs, or [`Self::NO_MODEL`] (answered by
+    /// the rules, in `ruled`).
     row: Vec<u32>,
+    /// Per sample the rules answered: that answer.
+    ruled: Vec<Prediction>,
     /// Rows used in the model inputs.
     rows: usize,
     v_north: Vec<f32>,
@@ -276,10 +252,11 @@ impl Batch {
     const NO_MODEL: u32 = u32::MAX;
 
     /// Scratch for batches of up to `capacity` samples.
-    pub fn new(capacity: usize) -> Self {
+    pub(crate) fn new(capacity: usize) -> Self {
         Self {
             samples: Vec::with_capacity(capacity),
             row: vec![Self::NO_MODEL; capacity],
+            ruled: vec![Prediction::INVALID; capacity],
             rows: 0,
             v_north: vec![0.0; capacity],
             v_east: vec![0.0; capacity],
@@ -289,37 +266,39 @@ impl Batch {
     }
 
     /// The most samples one batch takes.
-    pub fn capacity(&self) -> usize {
+    pub(crate) fn capacity(&self) -> usize {
         self.row.len()
     }
 
     /// Starts a new batch: no samples, no model inputs.
-    pub fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.samples.clear();
         self.rows = 0;
     }
 
-    /// Step 1: books `samples[i]` on its source's `tracker` (see [`Tracker::book`])
-    /// and, if the model may see it, adds it to the model inputs. Call for `i = 0, 1,
-    /// ...` in order.
+    /// Step 1: `samples[i]` through its source's rules (`stream`) and, if the model
+    /// may see it, into the model inputs. Call for `i = 0, 1, ...` in order.
     ///
     /// # Panics
     /// If `i` is not below the capacity or `samples[i]` does not exist.
-    pub fn book(&mut self, i: usize, tracker: &mut Tracker, limits: &Limits) {
-        let s = &self.samples[i];
-        self.row[i] = if tracker.book(s, limits) {
-            let r = self.rows;
-            (self.v_north[r], self.v_east[r], self.speed_acc[r]) =
-                (s.v_north, s.v_east, s.speed_accuracy);
-            self.rows += 1;
-            r as u32
-        } else {
-            Self::NO_MODEL
+    pub(crate) fn book(&mut self, i: usize, stream: &mut SourceStream) {
+        self.row[i] = match stream.admit(&sample(&self.samples[i])) {
+            Admission::Answered(p) => {
+                self.ruled[i] = p;
+                Self::NO_MODEL
+            }
+            Admission::Model(e) => {
+                let r = self.rows;
+                (self.v_north[r], self.v_east[r], self.speed_acc[r]) =
+                    (e.v_north, e.v_east, e.speed_acc);
+                self.rows += 1;
+                r as u32
+            }
         };
     }
 
     /// Step 2: one model call for every booked sample the model may see.
-    pub fn predict(&mut self, predictor: &mut Predictor) {
+    pub(crate) fn predict(&mut self, predictor: &mut Predictor) {
         let r = self.rows;
         predictor.predict_batch_with_accuracy(
             &self.v_north[..r],
@@ -329,34 +308,21 @@ impl Batch {
         );
     }
 
-    /// Step 3: the answer to `samples[i]`, from the tracker it was booked on (see
-    /// [`Tracker::finish`]). `processing_ns` is left at 0.
-    pub fn finish(&self, i: usize, tracker: &mut Tracker, tag: &ModelTag) -> HeadingEstimate {
-        let row = self.row[i];
-        let prediction = (row != Self::NO_MODEL).then(|| self.predictions[row as usize]);
-        tracker.finish(&self.samples[i], prediction, tag)
+    /// Step 3: the answer to `samples[i]`, recorded on the stream it was booked on.
+    /// `processing_ns` is left at 0.
+    pub(crate) fn finish(
+        &self,
+        i: usize,
+        stream: &mut SourceStream,
+        tag: &ModelTag,
+    ) -> HeadingEstimate {
+        let s = &self.samples[i];
+        let p = match self.row[i] {
+            Self::NO_MODEL => self.ruled[i],
+            row => stream.record(s.seq, self.predictions[row as usize]),
+        };
+        estimate(s, &p, tag)
     }
-}
-
-/// The daemon's input checks (the model additionally rejects non-finite horizontal
-/// components and horizontal speed above its `max_speed`).
-fn input_ok(s: &VelocitySample, limits: &Limits) -> bool {
-    if s.flags & flags::INVALID != 0 {
-        return false;
-    }
-    let down_known = s.flags & flags::V_DOWN_UNKNOWN == 0;
-    let v_down = if down_known { s.v_down } else { 0.0 };
-    if !(s.v_north.is_finite() && s.v_east.is_finite() && v_down.is_finite()) {
-        return false;
-    }
-    // NaN = unknown is fine; negative or infinite is a broken receiver.
-    let acc = s.speed_accuracy;
-    let acc_ok = acc.is_nan() || (acc >= 0.0 && acc.is_finite());
-    if !acc_ok {
-        return false;
-    }
-    let speed3 = (s.v_north * s.v_north + s.v_east * s.v_east + v_down * v_down).sqrt();
-    speed3 <= limits.max_speed
 }
 
 /// models::Status → wire status. `Invalid` is handled by the caller.
@@ -375,13 +341,17 @@ mod tests {
     use super::*;
     use std::sync::Arc;
 
-    fn setup() -> (Predictor, Limits, ModelTag) {
+    fn setup() -> (Runner, ModelTag) {
         let model = Arc::new(crate::test_model::load());
         let tag = ModelTag {
             id: model.id(),
             name: HeadingEstimate::encode_model_name(model.name()),
         };
-        (Predictor::new(model), Limits { max_speed: 100.0 }, tag)
+        (Runner::new(model, Default::default(), None), tag)
+    }
+
+    fn tracker(r: &Runner) -> Tracker {
+        Tracker::resume(r.stream(None), Counters::default())
     }
 
     /// A valid moving sample gets Ok or LowSpeed, depending on the model's σ.
@@ -398,9 +368,9 @@ mod tests {
 
     #[test]
     fn valid_sample_is_answered_with_echo_and_heading() {
-        let (mut p, l, tag) = setup();
-        let mut t = Tracker::default();
-        let h = t.answer(&sample(5, 1000, 0.0, 10.0), &mut p, &l, &tag);
+        let (mut p, tag) = setup();
+        let mut t = tracker(&p);
+        let h = t.answer(&sample(5, 1000, 0.0, 10.0), &mut p, &tag);
         assert_eq!((h.seq, h.timestamp_ns), (5, 1000));
         assert!(moving_ok(&h), "{h:?}");
         assert!(
@@ -413,20 +383,20 @@ mod tests {
         assert!((h.speed - 10.0).abs() < 1e-5);
         assert_eq!(h.model_id, tag.id);
         assert_eq!(h.model_name_str(), crate::test_model::TEST_MODEL);
-        assert_eq!(t.counters.received, 1);
-        assert_eq!(t.counters.invalid, 0);
+        assert_eq!(t.counters().received, 1);
+        assert_eq!(t.counters().invalid, 0);
     }
 
     #[test]
     fn stationary_maps_through() {
-        let (mut p, l, tag) = setup();
-        let h = Tracker::default().answer(&sample(0, 0, 0.0, 0.0), &mut p, &l, &tag);
+        let (mut p, tag) = setup();
+        let h = tracker(&p).answer(&sample(0, 0, 0.0, 0.0), &mut p, &tag);
         assert_eq!(h.heading_status(), Some(HeadingStatus::Stationary));
     }
 
     #[test]
     fn invalid_inputs_are_answered_and_counted() {
-        let (mut p, l, tag) = setup();
+        let (mut p, tag) = setup();
         let mut cases = vec![
             sample(0, 0, f32::NAN, 1.0),
             sample(0, 0, 1.0, f32::INFINITY),
@@ -447,8 +417,8 @@ mod tests {
         s.flags = flags::INVALID;
         cases.push(s);
         for (i, c) in cases.iter().enumerate() {
-            let mut t = Tracker::default();
-            let h = t.answer(c, &mut p, &l, &tag);
+            let mut t = tracker(&p);
+            let h = t.answer(c, &mut p, &tag);
             assert_eq!(
                 h.heading_status(),
                 Some(HeadingStatus::InvalidInput),
@@ -458,7 +428,7 @@ mod tests {
                 h.heading_deg.is_nan() && h.heading_std_deg.is_nan(),
                 "case {i}"
             );
-            assert_eq!(t.counters.invalid, 1, "case {i}");
+            assert_eq!(t.counters().invalid, 1, "case {i}");
         }
     }
 
@@ -466,9 +436,9 @@ mod tests {
     /// client/README.md says), the measured value for finite ones.
     #[test]
     fn invalid_speed_is_nan_only_for_non_finite_input() {
-        let (mut p, l, tag) = setup();
+        let (mut p, tag) = setup();
         let mut speed = |vn, ve| {
-            let h = Tracker::default().answer(&sample(0, 0, vn, ve), &mut p, &l, &tag);
+            let h = tracker(&p).answer(&sample(0, 0, vn, ve), &mut p, &tag);
             assert_eq!(h.heading_status(), Some(HeadingStatus::InvalidInput));
             h.speed
         };
@@ -489,20 +459,20 @@ mod tests {
 
     #[test]
     fn unknown_down_and_unknown_accuracy_are_fine() {
-        let (mut p, l, tag) = setup();
+        let (mut p, tag) = setup();
         let mut s = sample(0, 0, 3.0, 4.0);
         s.v_down = f32::NAN;
         s.flags = flags::V_DOWN_UNKNOWN | flags::SIMULATED | (1 << 20);
         assert!(s.speed_accuracy.is_nan());
-        let h = Tracker::default().answer(&s, &mut p, &l, &tag);
+        let h = tracker(&p).answer(&s, &mut p, &tag);
         assert!(moving_ok(&h), "{h:?}");
     }
 
     #[test]
     fn gaps_duplicates_and_backwards_time() {
-        let (mut p, l, tag) = setup();
-        let mut t = Tracker::default();
-        let mut go = |seq, ts| t.answer(&sample(seq, ts, 0.0, 5.0), &mut p, &l, &tag);
+        let (mut p, tag) = setup();
+        let mut t = tracker(&p);
+        let mut go = |seq, ts| t.answer(&sample(seq, ts, 0.0, 5.0), &mut p, &tag);
         go(10, 100);
         go(11, 110);
         go(14, 140); // gap of 2
@@ -513,7 +483,7 @@ mod tests {
         assert!(moving_ok(&h), "{h:?}");
         go(0, 200); // publisher restarted its counter
         go(1, 210);
-        let c = t.counters;
+        let c = t.counters();
         assert_eq!(c.received, 8);
         assert_eq!(c.gaps, 2);
         assert_eq!(c.duplicates, 2);
@@ -526,7 +496,7 @@ mod tests {
     /// the same statuses and counters, values equal up to the batch kernel's rounding.
     #[test]
     fn batch_steps_answer_like_answer() {
-        let (mut p, l, tag) = setup();
+        let (mut p, tag) = setup();
         let mut inputs: Vec<VelocitySample> = (0..40)
             .map(|i| {
                 let mut s = sample(i, 10 * i, 0.3 * i as f32 - 6.0, 2.0 - 0.1 * i as f32);
@@ -538,21 +508,18 @@ mod tests {
         inputs[5].timestamp_ns = 0; // backwards in time
         inputs[7].flags = flags::INVALID;
         inputs[9] = sample(9, 90, 0.0, 0.0); // stationary
-        let (mut one, mut batched) = (Tracker::default(), Tracker::default());
-        let want: Vec<_> = inputs
-            .iter()
-            .map(|s| one.answer(s, &mut p, &l, &tag))
-            .collect();
+        let (mut one, mut batched) = (tracker(&p), tracker(&p));
+        let want: Vec<_> = inputs.iter().map(|s| one.answer(s, &mut p, &tag)).collect();
 
         let mut batch = Batch::new(64);
         batch.clear();
         batch.samples.extend_from_slice(&inputs);
         for i in 0..inputs.len() {
-            batch.book(i, &mut batched, &l);
+            batch.book(i, &mut batched.stream);
         }
-        batch.predict(&mut p);
+        batch.predict(p.batched().expect("per-epoch model"));
         let got: Vec<_> = (0..inputs.len())
-            .map(|i| batch.finish(i, &mut batched, &tag))
+            .map(|i| batch.finish(i, &mut batched.stream, &tag))
             .collect();
         for ((s, got), w) in inputs.iter().zip(&got).zip(&want) {
             assert_eq!((got.seq, got.status), (w.seq, w.status), "{s:?}");
@@ -567,14 +534,14 @@ mod tests {
                 );
             }
         }
-        assert_eq!(batched.counters, one.counters);
-        assert_eq!(one.counters.invalid, 3);
+        assert_eq!(batched.counters(), one.counters());
+        assert_eq!(one.counters().invalid, 3);
     }
 
     #[test]
     fn stale_message_echoes_the_last_sample() {
-        let (mut p, l, tag) = setup();
-        let last = Tracker::default().answer(&sample(41, 4100, 0.0, 5.0), &mut p, &l, &tag);
+        let (mut p, tag) = setup();
+        let last = tracker(&p).answer(&sample(41, 4100, 0.0, 5.0), &mut p, &tag);
         let s = stale_message(&last);
         assert_eq!((s.seq, s.timestamp_ns), (41, 4100));
         assert_eq!(s.heading_status(), Some(HeadingStatus::Stale));
@@ -585,12 +552,93 @@ mod tests {
 
     #[test]
     fn resume_keeps_counts_but_not_sequence() {
-        let (mut p, l, tag) = setup();
-        let mut t = Tracker::default();
-        t.answer(&sample(100, 100, 1.0, 1.0), &mut p, &l, &tag);
-        let mut t = Tracker::resume(t.counters);
-        t.answer(&sample(0, 0, 1.0, 1.0), &mut p, &l, &tag);
-        assert_eq!(t.counters.received, 2);
-        assert_eq!(t.counters.duplicates + t.counters.backwards, 0);
+        let (mut p, tag) = setup();
+        let mut t = tracker(&p);
+        t.answer(&sample(100, 100, 1.0, 1.0), &mut p, &tag);
+        let mut t = Tracker::resume(p.stream(None), t.counters());
+        t.answer(&sample(0, 0, 1.0, 1.0), &mut p, &tag);
+        assert_eq!(t.counters().received, 2);
+        assert_eq!(t.counters().duplicates + t.counters().backwards, 0);
+    }
+
+    /// Stateful models: each source's history, its resets and repeats.
+    mod stateful {
+        use crate::answer::{Counters, ModelTag, Tracker};
+        use ghnet_client::{HeadingEstimate, HeadingStatus, VelocitySample};
+        use ghnet_models::{Model, Runner, StatusPolicy};
+        use std::sync::Arc;
+
+        fn setup(model: &str) -> (Runner, Tracker, ModelTag) {
+            let model = Arc::new(Model::builtin(model).expect("built-in model"));
+            let tag = ModelTag {
+                id: model.id(),
+                name: HeadingEstimate::encode_model_name(model.name()),
+            };
+            let runner = Runner::new(model, StatusPolicy::default(), None);
+            let tracker = Tracker::resume(runner.stream(None), Counters::default());
+            (runner, tracker, tag)
+        }
+
+        const S: u64 = 1_000_000_000;
+
+        fn at(seq: u64, t_s: f64, vn: f32, ve: f32) -> VelocitySample {
+            VelocitySample::new(1_700_000_000 * S + (t_s * 1e9) as u64, seq, vn, ve, 0.0)
+        }
+
+        #[test]
+        fn per_epoch_models_keep_no_history() {
+            let (runner, t, _) = setup("ghnet-epoch");
+            assert!(t.stream.history().is_none() && runner.max_gap_s().is_none());
+        }
+
+        /// A car that drives east and stops (10 Hz): `Held` at its last heading, σ
+        /// growing, for half a second (the shipped `kf`'s tuned random walk, 120 °/√s,
+        /// reaches the uniform σ, `Stationary`, within a second).
+        #[test]
+        fn kf_holds_a_stopped_source() {
+            let (mut r, mut t, tag) = setup("kf");
+            let mut go = |s: VelocitySample| t.answer(&s, &mut r, &tag);
+            let first = go(at(0, 0.0, 0.0, 0.0));
+            assert_eq!(first.heading_status(), Some(HeadingStatus::Stationary));
+            for i in 1..50 {
+                go(at(i, i as f64 / 10.0, 0.0, 5.0));
+            }
+            let mut std = 0.0;
+            for i in 50..55 {
+                let a = go(at(i, i as f64 / 10.0, 0.01, 0.0));
+                assert_eq!(a.heading_status(), Some(HeadingStatus::Held), "{a:?}");
+                assert!((a.heading_deg - 90.0).abs() < 5.0, "{a:?}");
+                assert!(a.heading_std_deg > std, "{a:?}");
+                std = a.heading_std_deg;
+            }
+        }
+
+        /// Gaps, time going backwards and a restarted sequence each clear the history
+        /// once and are counted once; a repeated sample gets its first answer again.
+        #[test]
+        fn resets_are_counted_once_and_repeats_do_not_advance() {
+            let (mut r, mut t, tag) = setup("kf");
+            let gap = r.max_gap_s().expect("stateful");
+            let mut go = |s: VelocitySample| t.answer(&s, &mut r, &tag);
+            for i in 0..5 {
+                go(at(i, i as f64, 3.0, 3.0));
+            }
+            let a = go(at(5, 5.0, 3.0, -3.0));
+            let b = go(at(5, 5.0, 3.0, -3.0));
+            assert_eq!(a, b, "a repeat is answered like its first copy");
+            go(at(6, 6.0 + gap + 1.0, 3.0, 3.0)); // gap
+            let back = go(at(7, 2.0, 3.0, 3.0)); // backwards
+            assert_eq!(back.heading_status(), Some(HeadingStatus::InvalidInput));
+            go(at(8, 3.0, 3.0, 3.0)); // forward again: a fresh history
+            go(at(0, 4.0, 3.0, 3.0)); // the publisher restarted its counter
+            let c = t.counters();
+            assert_eq!(
+                (c.resets_gap, c.resets_backwards, c.resets_restart),
+                (1, 1, 1)
+            );
+            assert_eq!((c.backwards, c.duplicates), (1, 2));
+            let resets = t.stream.history().unwrap().resets();
+            assert_eq!((resets.gap, resets.backwards, resets.explicit), (1, 1, 1));
+        }
     }
 }

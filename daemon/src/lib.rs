@@ -7,19 +7,15 @@
 //!   `stats`, `zenoh`) and
 //!   [`config::Cli`] (clap flags overriding it); validation with one-line errors that
 //!   name the key.
-//! - [`answer`] — per-sample logic without IPC: input checks, sequence and timestamp
-//!   bookkeeping ([`Counters`]), the model call (one sample, or many, possibly of
-//!   several sources, with one batched call: [`answer::Batch`]), mapping to the wire
-//!   status.
-//! - [`history`] — stateful models (`kf`, `ghnet-temporal`): one history per source,
-//!   samples one at a time in arrival order, the reset rules (gap, time backwards,
-//!   restarted publisher, repeated sample) and their counters.
+//! - `answer` (private) — the wire side of a source's samples: [`Counters`], the
+//!   conversion to the sample rules of `ghnet_models::source` (sequence, time,
+//!   validity, resets, repeats: the same in ghnetd and `ghnet infer`), the per-epoch
+//!   batch path, the `Stale` message. The model runs through `ghnet_models::Runner`.
 //! - `lock` (private) — one ghnetd per service prefix and iceoryx2 namespace: an
 //!   exclusive lock file holding the pid, released by the kernel when its holder
 //!   dies (so `kill -9` leaves nothing to clean up).
-//! - `source` (private) — `Source`, one served source: its ports, its outputs and the
-//!   state that changes while serving it (tracker, last answer, latencies, silence
-//!   watch).
+//! - `source` (private) — `Source`, one served source's ports and outputs, and beside
+//!   it its `State` (rules and history, last answer, latencies, silence watch).
 //! - `output` (private) — `HeadingOutput`, one destination of a source's answers:
 //!   the iceoryx2 heading service, and the Zenoh publisher.
 //! - `remote` (private) — the Zenoh session: heading publishers (congestion control
@@ -27,6 +23,10 @@
 //!   `<prefix>/@ghnetd/<zid>`, and the `<prefix>/@ghnetd/stats` and `.../model`
 //!   queryables, answered on Zenoh's threads from a snapshot the loop refreshes with
 //!   `try_lock` (never waiting).
+//! - `latency` (private) — the ring of recent processing times behind the stats
+//!   percentiles.
+//! - `roster` (private) — sources found but not served, why, and the retry backoff.
+//! - `node` (private) — the iceoryx2 node and the hardening of its /dev/shm segment.
 //! - `discovery` (private) — which velocity services exist, and whether a pass needs
 //!   to look (the services directory changed).
 //! - `serve` (private) — the event loop (start, serve, shutdown): one iceoryx2 node,
@@ -89,14 +89,16 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-pub mod answer;
+mod answer;
 pub mod config;
 mod discovery;
-pub mod history;
+mod latency;
 mod lock;
+mod node;
 mod output;
 mod pressure;
 mod remote;
+mod roster;
 mod serve;
 mod source;
 #[cfg(test)]

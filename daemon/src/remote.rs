@@ -37,55 +37,15 @@ use tracing::info;
 
 use crate::answer::Counters;
 use crate::config::ZenohSection;
+use crate::latency::{LatencyRing, LATENCY_WINDOW};
 use crate::output::{Burst, HeadingOutput, OutputError};
-use crate::source::State;
 
-/// Processing times kept per source for the stats percentiles (the most recent ones).
-pub(crate) const LATENCY_WINDOW: usize = 1024;
-
-/// Recent processing times of one source, a ring owned by the loop (allocated once
-/// per source; writing into it allocates nothing).
-pub(crate) struct LatencyRing {
-    ns: Box<[u64; LATENCY_WINDOW]>,
-    len: usize,
-    next: usize,
-    /// Times pushed since the ring was made, so a copy can take only what is new.
-    pushed: u64,
-}
-
-impl LatencyRing {
-    pub(crate) fn new() -> Self {
-        Self {
-            ns: Box::new([0; LATENCY_WINDOW]),
-            len: 0,
-            next: 0,
-            pushed: 0,
-        }
-    }
-
-    pub(crate) fn push(&mut self, ns: u64) {
-        self.ns[self.next] = ns;
-        self.next = (self.next + 1) % LATENCY_WINDOW;
-        self.len = (self.len + 1).min(LATENCY_WINDOW);
-        self.pushed += 1;
-    }
-
-    /// Brings `copy` (a copy of this ring made when it had `seen` pushes) up to date
-    /// and returns the count to pass next time. Copies only the slots written since:
-    /// the loop refreshes a source's snapshot on every wake-up, and copying the whole
-    /// window each time cost more than the model's head. A `seen` ahead of this ring
-    /// (the source's state was made anew) copies everything.
-    fn update(&self, copy: &mut [u64; LATENCY_WINDOW], seen: u64) -> u64 {
-        let new = self
-            .pushed
-            .checked_sub(seen)
-            .map_or(LATENCY_WINDOW, |n| n.min(LATENCY_WINDOW as u64) as usize);
-        let start = (self.next + LATENCY_WINDOW - new) % LATENCY_WINDOW;
-        let first = new.min(LATENCY_WINDOW - start);
-        copy[start..start + first].copy_from_slice(&self.ns[start..start + first]);
-        copy[..new - first].copy_from_slice(&self.ns[..new - first]);
-        self.pushed
-    }
+/// What the stats snapshot takes of a source's state: its counters, last answer and
+/// recent processing times (the source builds it; this module never sees its state).
+pub(crate) struct SourceView<'a> {
+    pub(crate) counters: Counters,
+    pub(crate) last: Option<HeadingEstimate>,
+    pub(crate) latency: &'a LatencyRing,
 }
 
 /// What the loop last published about one source.
@@ -223,24 +183,24 @@ impl Shared {
         .expect("stats always serialise")
     }
 
-    fn write(&mut self, source: &str, state: &State, served: bool) {
-        let ring = &state.latency;
+    fn write(&mut self, source: &str, state: &SourceView, served: bool) {
+        let ring = state.latency;
         match self.sources.get_mut(source) {
             Some(s) => {
-                s.counters = state.tracker.counters;
+                s.counters = state.counters;
                 s.served = served;
                 s.last = state.last;
                 s.latency_seen = ring.update(&mut s.latencies, s.latency_seen);
-                s.latency_len = ring.len;
+                s.latency_len = ring.len();
             }
             None => {
                 let snapshot = SourceSnapshot {
-                    counters: state.tracker.counters,
+                    counters: state.counters,
                     served,
                     last: state.last,
-                    latencies: ring.ns.clone(),
-                    latency_len: ring.len,
-                    latency_seen: ring.pushed,
+                    latencies: ring.copy(),
+                    latency_len: ring.len(),
+                    latency_seen: ring.pushed(),
                 };
                 self.sources.insert(source.to_owned(), snapshot);
             }
@@ -335,7 +295,7 @@ impl ZenohSide {
     /// Refreshes the snapshot of a served `source` unless a query is reading it right
     /// now (the loop never waits for a query); `false` then, and the caller tries
     /// again later (`Source::catch_up_snapshot`).
-    pub(crate) fn refresh(&self, source: &str, state: &State) -> bool {
+    pub(crate) fn refresh(&self, source: &str, state: &SourceView) -> bool {
         match self.shared.try_lock() {
             Ok(mut shared) => {
                 shared.write(source, state, true);
@@ -349,7 +309,13 @@ impl ZenohSide {
     /// longer, `served: false`), with `state` as it is, and the add/remove totals that
     /// include this change, under one lock so that no query sees one without the other.
     /// Waits for the lock: a change is rare, and must not be lost.
-    pub(crate) fn set_served(&self, source: &str, state: &State, served: bool, totals: (u64, u64)) {
+    pub(crate) fn set_served(
+        &self,
+        source: &str,
+        state: &SourceView,
+        served: bool,
+        totals: (u64, u64),
+    ) {
         let mut shared = self.shared.lock().unwrap_or_else(|e| e.into_inner());
         shared.write(source, state, served);
         (shared.sources_added, shared.sources_removed) = totals;
@@ -476,30 +442,6 @@ impl HeadingOutput for ZenohOutput {
 
 #[cfg(test)]
 mod tests {
-    use super::{LatencyRing, LATENCY_WINDOW};
-
-    /// A copy brought up to date now and then, over wrap-arounds and bursts longer
-    /// than the window, equals the ring; a fresh ring behind the copy replaces it.
-    #[test]
-    fn latency_copy_takes_what_is_new() {
-        let mut ring = LatencyRing::new();
-        let mut copy = Box::new([0u64; LATENCY_WINDOW]);
-        let mut seen = 0;
-        let mut v = 1u64;
-        for burst in [1usize, 3, 700, 1, 1500, 1023, 1024, 1025, 5, 2048, 17] {
-            for _ in 0..burst {
-                ring.push(v);
-                v += 1;
-            }
-            seen = ring.update(&mut copy, seen);
-            assert_eq!(copy[..], ring.ns[..], "after a burst of {burst}");
-        }
-        let mut fresh = LatencyRing::new();
-        fresh.push(7);
-        seen = fresh.update(&mut copy, seen);
-        assert_eq!((seen, &copy[..]), (1, &fresh.ns[..]));
-    }
-
     #[test]
     fn port_zero_is_resolved_and_others_are_kept() {
         let r = super::resolve_port_zero("tcp/127.0.0.1:0").unwrap();

@@ -2,10 +2,12 @@
 //! start, serve, shutdown.
 //!
 //! Each served [`Source`] owns its ports (velocity subscriber + listener, and per
-//! output the heading publisher + notifier), made once when the source is added. The
+//! output the heading publisher + notifier), made once when the source is added; its
+//! [`State`] sits beside it in [`Sources`]. The
 //! WaitSet holds one notification attachment per source listener and one interval
 //! ("housekeeping") for discovery, liveness, dead-node cleanup and the stats line.
-//! Its guards borrow the sources, so the set of sources can only change between
+//! Its guards borrow the ports (the states stay free to change), so the set of
+//! sources can only change between
 //! attachment scopes: when housekeeping finds a change, the scope ends
 //! ([`Daemon::serve`] returns the [`Changes`]), the change is applied, and the
 //! attachments are made again (rare, and nothing is lost: pending notifications stay
@@ -15,7 +17,7 @@
 //! in rounds of up to [`BATCH`] samples ([`Daemon::serve_round`]), so receivers on
 //! one epoch share a model call and a Zenoh network batch.
 
-use std::collections::btree_map::{BTreeMap, Entry};
+use std::collections::BTreeMap;
 use std::collections::BTreeSet;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -25,18 +27,19 @@ use ghnet_client::iceoryx2::config::Config as IoxConfig;
 use ghnet_client::iceoryx2::prelude::*;
 use ghnet_client::iceoryx2::waitset::WaitSetGuard;
 use ghnet_client::{HeadingEstimate, IpcConfig, SERVICE_SETTINGS};
-use ghnet_models::Model;
+use ghnet_models::{Model, Runner, Staged};
 use tracing::{debug, info, warn};
 
-use crate::answer::{Batch, Counters, Limits, ModelTag};
+use crate::answer::{estimate, sample, Batch, Counters, ModelTag};
 use crate::config::Config;
 use crate::discovery::{velocity_sources, BadNames, ServiceDirWatch};
-use crate::history::Runner;
 use crate::lock::InstanceLock;
+use crate::node::open_node;
 use crate::output::Burst;
-use crate::pressure::{Budget, Retry};
+use crate::pressure::Budget;
 use crate::remote::ZenohSide;
-use crate::source::{Kind, Source};
+use crate::roster::{Changes, Roster};
+use crate::source::{Kind, Source, Sources, State};
 use crate::{ShutdownFlag, Stats};
 
 /// Longest the loop sleeps without looking at the shutdown flag. Signals interrupt
@@ -67,7 +70,7 @@ pub(crate) fn run(config: Config, shutdown: ShutdownFlag) -> anyhow::Result<Stat
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<ipc::Service>()
         .context("cannot create the iceoryx2 WaitSet")?;
-    while let Some(changes) = daemon.serve(&waitset, &sources, &shutdown)? {
+    while let Some(changes) = daemon.serve(&waitset, &mut sources, &shutdown)? {
         daemon.apply(changes, &mut sources);
     }
     Ok(daemon.shutdown(sources, waitset))
@@ -110,46 +113,14 @@ impl Wake {
     }
 }
 
-/// What a housekeeping pass wants changed in the set of sources.
-#[derive(Default)]
-struct Changes {
-    add: Vec<String>,
-    /// Indices into the sources, any order.
-    remove: Vec<usize>,
-}
-
-impl Changes {
-    fn is_empty(&self) -> bool {
-        self.add.is_empty() && self.remove.is_empty()
-    }
-}
-
-/// Why a source that has a velocity service is not served. Listed in the stats
-/// (`unserved`, with [`Unserved::reason`] and the retry count) for as long as its
-/// velocity service exists (a static source: for as long as ghnetd runs).
-enum Unserved {
-    /// `sources.max_sources` were served when it appeared; it is served as soon as a
-    /// slot frees.
-    OverLimit,
-    /// Its services could not be opened, or a resource it needs is short (the message
-    /// names the service and the setting, or the resource); tried again with backoff.
-    Failed(Retry),
-}
-
-impl Unserved {
-    fn reason(&self, max_sources: usize) -> String {
-        match self {
-            Unserved::OverLimit => format!("sources.max_sources ({max_sources}) reached"),
-            Unserved::Failed(r) => r.reason.clone(),
-        }
-    }
-
-    fn retries(&self) -> u64 {
-        match self {
-            Unserved::OverLimit => 0,
-            Unserved::Failed(r) => r.retries,
-        }
-    }
+/// How a round is answered ([`Daemon::path`]).
+enum Path {
+    /// Each sample alone, in order.
+    OneByOne,
+    /// A per-epoch model, every sample in one call.
+    Batched,
+    /// A temporal model in staged passes.
+    Passes,
 }
 
 /// Loop state that is not borrowed by the WaitSet guards.
@@ -162,14 +133,12 @@ struct Daemon {
     runner: Runner,
     batch: Batch,
     wake: Wake,
-    limits: Limits,
     tag: ModelTag,
     /// Counters of sources that were dropped, kept for the stats and resumed if the
     /// source comes back.
     retired: BTreeMap<String, Counters>,
-    /// Sources found but not served, reported once each (and again when the reason
-    /// changes). Forgotten when their velocity service disappears; static ones never.
-    unserved: BTreeMap<String, Unserved>,
+    /// Sources found but not served, why, and when to try again.
+    roster: Roster,
     /// What a source costs in descriptors and shared memory, checked before opening one.
     budget: Budget,
     added: u64,
@@ -192,7 +161,7 @@ struct Daemon {
 impl Daemon {
     /// Loads the model, takes the instance lock, opens Zenoh and the iceoryx2 node,
     /// and opens the static sources.
-    fn start(config: Config) -> anyhow::Result<(Self, Vec<Source>)> {
+    fn start(config: Config) -> anyhow::Result<(Self, Sources)> {
         let ipc = config.ipc_config()?;
         let iox_config = ipc.iceoryx2_config();
         // The model first: a bad model file is a config error and must leave nothing
@@ -229,9 +198,6 @@ impl Daemon {
             "ghnetd starting"
         );
         let mut daemon = Daemon {
-            limits: Limits {
-                max_speed: config.model.max_speed as f32,
-            },
             tag: ModelTag {
                 id: model.id(),
                 name: HeadingEstimate::encode_model_name(model.name()),
@@ -246,7 +212,7 @@ impl Daemon {
             ipc,
             iox_config,
             retired: BTreeMap::new(),
-            unserved: BTreeMap::new(),
+            roster: Roster::default(),
             budget,
             added: 0,
             removed: 0,
@@ -258,7 +224,7 @@ impl Daemon {
         // A static source that cannot be opened is that source's problem (e.g. a
         // consumer created its heading service with smaller limits): it is reported
         // and retried like a discovered one, and the others are served meanwhile.
-        let mut sources = Vec::new();
+        let mut sources = Sources::default();
         let add = Changes {
             add: daemon.config.sources.static_sources.clone(),
             remove: Vec::new(),
@@ -272,26 +238,27 @@ impl Daemon {
     fn serve(
         &mut self,
         waitset: &WaitSet<ipc::Service>,
-        sources: &[Source],
+        sources: &mut Sources,
         shutdown: &ShutdownFlag,
     ) -> anyhow::Result<Option<Changes>> {
+        let Sources { ports, states } = sources;
         let tick = waitset
             .attach_interval(self.config.discovery_interval())
             .context("cannot attach the housekeeping interval")?;
-        let guards = ghnet_client::attach_listeners(waitset, sources.iter().map(|s| &s.velocity))
+        let guards = ghnet_client::attach_listeners(waitset, ports.iter().map(|s| &s.velocity))
             .context("cannot attach a source listener to the WaitSet")?;
-        self.wake.size_for(sources.len());
+        self.wake.size_for(ports.len());
         // Samples that arrived before a listener was attached (or before it existed)
         // have no pending wake-up; answer them now.
-        self.serve_all(sources);
+        self.serve_all(ports, states);
         loop {
             let tick_due = self.wait(waitset, &tick, &guards)?;
-            self.serve_fired(sources);
+            self.serve_fired(ports, states);
             if shutdown.is_requested() {
                 return Ok(None);
             }
             if tick_due {
-                let changes = self.housekeeping(sources);
+                let changes = self.housekeeping(ports, states);
                 if !changes.is_empty() {
                     return Ok(Some(changes));
                 }
@@ -301,11 +268,11 @@ impl Daemon {
 
     /// Answers what is already buffered, releases the ports before the WaitSet and
     /// the node, and returns the final counters.
-    fn shutdown(mut self, sources: Vec<Source>, waitset: WaitSet<ipc::Service>) -> Stats {
+    fn shutdown(mut self, mut sources: Sources, waitset: WaitSet<ipc::Service>) -> Stats {
         info!("shutdown requested: answering buffered samples");
-        self.serve_all(&sources);
+        self.serve_all(&sources.ports, &mut sources.states);
         let stats = self.stats(&sources);
-        self.log_stats(&sources);
+        self.log_stats(&sources.ports, &sources.states);
         drop(sources);
         drop(waitset);
         let total = stats.total();
@@ -345,17 +312,17 @@ impl Daemon {
     }
 
     /// Answers everything every source has buffered.
-    fn serve_all(&mut self, sources: &[Source]) {
+    fn serve_all(&mut self, ports: &[Source], states: &mut [State]) {
         self.wake.fired.clear();
-        self.wake.fired.extend(0..sources.len());
-        self.serve_fired(sources);
+        self.wake.fired.extend(0..ports.len());
+        self.serve_fired(ports, states);
     }
 
     /// Answers everything the sources in `wake.fired` have buffered, in rounds of up
     /// to [`BATCH`] samples, each source taking an equal share of a round; then
     /// settles each woken source once (one wake-up of its listeners for all its
     /// answers, however many rounds they took).
-    fn serve_fired(&mut self, sources: &[Source]) {
+    fn serve_fired(&mut self, ports: &[Source], states: &mut [State]) {
         let wake = &mut self.wake;
         wake.woken.clear();
         wake.woken.extend_from_slice(&wake.fired);
@@ -363,14 +330,14 @@ impl Daemon {
         // share to nothing), so draining there drains each once per wake-up.
         let mut first = true;
         while !self.wake.fired.is_empty() {
-            self.serve_round(sources, std::mem::take(&mut first));
+            self.serve_round(ports, states, std::mem::take(&mut first));
             // Sources with more than fitted go again.
             std::mem::swap(&mut self.wake.fired, &mut self.wake.more);
         }
         let wake = &mut self.wake;
         for &f in &wake.woken {
             let answered = std::mem::take(&mut wake.answered[f]);
-            sources[f].settle(answered, self.zenoh.as_ref());
+            ports[f].settle(&mut states[f], answered, self.zenoh.as_ref());
         }
     }
 
@@ -380,10 +347,10 @@ impl Daemon {
     /// the one-sample path, the lowest latency; more go through the model together,
     /// whether they come from one source that fell behind or from many that woke
     /// together: a per-epoch model in one batched call, a temporal model in staged
-    /// passes ([`serve_passes`](Self::serve_passes)); over Zenoh as one network batch,
+    /// passes (chosen by [`path`](Self::path)); over Zenoh as one network batch,
     /// only the round's last heading express. Sources with more samples than fitted
     /// are left in `wake.more`. Allocates nothing.
-    fn serve_round(&mut self, sources: &[Source], drain: bool) {
+    fn serve_round(&mut self, ports: &[Source], states: &mut [State], drain: bool) {
         let (batch, wake) = (&mut self.batch, &mut self.wake);
         batch.clear();
         wake.owner.clear();
@@ -393,38 +360,57 @@ impl Daemon {
         // source that fell behind fills the round.
         let share = (BATCH / wake.fired.len().max(1)).max(1);
         for &f in &wake.fired {
-            if !sources[f].take_samples(batch, &mut wake.owner, f, share, drain) {
+            if !ports[f].take_samples(batch, &mut wake.owner, f, share, drain) {
                 wake.more.push(f);
             }
         }
-        let n = batch.samples.len();
-        // From BATCH_MIN samples on, a per-epoch model batches and a temporal one
-        // stages passes; `kf` (and any round under BATCH_MIN) takes every sample
-        // alone, in order, against its source's history.
-        let batched = n >= BATCH_MIN && self.runner.batched().is_some();
-        if n >= BATCH_MIN && self.runner.stages() {
-            self.serve_passes(sources);
-        } else if !batched {
-            for i in 0..n {
-                let (t0, f) = (Instant::now(), wake.owner[i]);
-                let mut state = sources[f].state.borrow_mut();
-                let s = &batch.samples[i];
-                let answer = state.answer(s, &mut self.runner, &self.limits, &self.tag);
-                wake.answered[f] |= sources[f].deliver(&mut state, answer, t0, Burst::of(i, n));
-            }
+        match self.path() {
+            Path::OneByOne => self.serve_one_by_one(ports, states),
+            Path::Batched => self.serve_batched(ports, states),
+            Path::Passes => self.serve_passes(ports, states),
+        }
+    }
+
+    /// How the round in the batch is answered, decided here only. From [`BATCH_MIN`]
+    /// samples on, a per-epoch model batches and a temporal one stages passes; `kf`
+    /// (and any round under [`BATCH_MIN`]) takes every sample alone, in order, against
+    /// its source's history.
+    fn path(&mut self) -> Path {
+        if self.batch.samples.len() < BATCH_MIN {
+            Path::OneByOne
+        } else if self.runner.stages() {
+            Path::Passes
+        } else if self.runner.batched().is_some() {
+            Path::Batched
         } else {
-            let t0 = Instant::now();
-            for i in 0..n {
-                let mut state = sources[wake.owner[i]].state.borrow_mut();
-                batch.book(i, &mut state.tracker, &self.limits);
-            }
-            batch.predict(self.runner.batched().expect("per-epoch model"));
-            for i in 0..n {
-                let f = wake.owner[i];
-                let mut state = sources[f].state.borrow_mut();
-                let answer = batch.finish(i, &mut state.tracker, &self.tag);
-                wake.answered[f] |= sources[f].deliver(&mut state, answer, t0, Burst::of(i, n));
-            }
+            Path::OneByOne
+        }
+    }
+
+    /// A round one sample at a time (the lowest latency).
+    fn serve_one_by_one(&mut self, ports: &[Source], states: &mut [State]) {
+        let (batch, wake) = (&self.batch, &mut self.wake);
+        let n = batch.samples.len();
+        for i in 0..n {
+            let (t0, f) = (Instant::now(), wake.owner[i]);
+            let s = &batch.samples[i];
+            let answer = states[f].answer(s, &mut self.runner, &self.tag);
+            wake.answered[f] |= ports[f].deliver(&mut states[f], answer, t0, Burst::of(i, n));
+        }
+    }
+
+    /// A round through a per-epoch model in one batched call.
+    fn serve_batched(&mut self, ports: &[Source], states: &mut [State]) {
+        let (batch, wake) = (&mut self.batch, &mut self.wake);
+        let (t0, n) = (Instant::now(), batch.samples.len());
+        for i in 0..n {
+            batch.book(i, &mut states[wake.owner[i]].tracker.stream);
+        }
+        batch.predict(self.runner.batched().expect("per-epoch model"));
+        for i in 0..n {
+            let f = wake.owner[i];
+            let answer = batch.finish(i, &mut states[f].tracker.stream, &self.tag);
+            wake.answered[f] |= ports[f].deliver(&mut states[f], answer, t0, Burst::of(i, n));
         }
     }
 
@@ -432,7 +418,7 @@ impl Daemon {
     /// sample of every source in the round, their convolutions run together (the
     /// weights read once for all of them), then each is answered in its source's
     /// order. Answers are bit for bit those of one sample at a time.
-    fn serve_passes(&mut self, sources: &[Source]) {
+    fn serve_passes(&mut self, ports: &[Source], states: &mut [State]) {
         let (batch, wake, runner) = (&self.batch, &mut self.wake, &mut self.runner);
         let n = batch.samples.len();
         // Each source's samples are in the round in arrival order.
@@ -452,14 +438,13 @@ impl Daemon {
             wake.staged.clear();
             for i in (0..n).filter(|&i| wake.pass[i] == k) {
                 let f = wake.owner[i];
-                let mut state = sources[f].state.borrow_mut();
-                let (tracker, history) = state.model_parts();
                 let s = &batch.samples[i];
-                match runner.stage(tracker, history, s, &self.limits, &self.tag) {
-                    Ok(column) => wake.staged.push((i, column)),
-                    Err(answer) => {
+                match runner.stage(&mut states[f].tracker.stream, &sample(s)) {
+                    Staged::Waiting(column) => wake.staged.push((i, column)),
+                    Staged::Answered(p) => {
+                        let answer = estimate(s, &p, &self.tag);
                         let burst = Burst::of(done, n);
-                        wake.answered[f] |= sources[f].deliver(&mut state, answer, t0, burst);
+                        wake.answered[f] |= ports[f].deliver(&mut states[f], answer, t0, burst);
                         done += 1;
                     }
                 }
@@ -467,12 +452,11 @@ impl Daemon {
             runner.run_staged();
             for &(i, column) in &wake.staged {
                 let f = wake.owner[i];
-                let mut state = sources[f].state.borrow_mut();
-                let (tracker, history) = state.model_parts();
                 let s = &batch.samples[i];
-                let answer = runner.complete(tracker, history, s, column, &self.tag);
+                let p = runner.complete(&mut states[f].tracker.stream, &sample(s), column);
+                let answer = estimate(s, &p, &self.tag);
                 let burst = Burst::of(done, n);
-                wake.answered[f] |= sources[f].deliver(&mut state, answer, t0, burst);
+                wake.answered[f] |= ports[f].deliver(&mut states[f], answer, t0, burst);
                 done += 1;
             }
         }
@@ -482,21 +466,21 @@ impl Daemon {
     /// for silent sources (one `Stale` message each), finds sources whose publishers
     /// are gone, discovers new ones, logs stats when due. Changes no ports; the caller
     /// applies the changes outside the WaitSet scope.
-    fn housekeeping(&mut self, sources: &[Source]) -> Changes {
+    fn housekeeping(&mut self, ports: &[Source], states: &mut [State]) -> Changes {
         let now = Instant::now();
         self.cleanup_dead_nodes(now);
         let stale_after = self.config.stale_after();
         let mut changes = Changes::default();
-        for (i, s) in sources.iter().enumerate() {
-            s.watch_silence(now, stale_after, self.zenoh.as_ref());
-            s.catch_up_snapshot(self.zenoh.as_ref());
-            if s.is_gone(stale_after) {
+        for (i, (s, state)) in ports.iter().zip(states.iter_mut()).enumerate() {
+            s.watch_silence(state, now, stale_after, self.zenoh.as_ref());
+            s.catch_up_snapshot(state, self.zenoh.as_ref());
+            if s.is_gone(state, stale_after) {
                 changes.remove.push(i);
             }
         }
         if self.config.sources.discovery && self.services.due(now) {
             match velocity_sources(&self.iox_config, &self.ipc, &mut self.bad_names) {
-                Ok(found) => self.discover(found, sources, &mut changes),
+                Ok(found) => self.discover(found, ports, &mut changes),
                 // Never fatal: the next pass lists again.
                 Err(e) => warn!(
                     error = format_args!("{e:#}"),
@@ -505,9 +489,14 @@ impl Daemon {
                 ),
             }
         }
-        self.retries_due(now, sources.len(), &mut changes);
+        self.roster.retries_due(
+            now,
+            ports.len(),
+            self.config.sources.max_sources,
+            &mut changes,
+        );
         if self.next_stats.is_some_and(|next| now >= next) {
-            self.log_stats(sources);
+            self.log_stats(ports, states);
             self.next_stats = self.config.stats_interval().map(|i| now + i);
         }
         changes
@@ -534,77 +523,40 @@ impl Daemon {
         }
     }
 
-    /// Adds to `changes` the sources that failed to open and whose backoff is over,
-    /// as long as `sources.max_sources` leaves room (`served` are served now).
-    fn retries_due(&self, now: Instant, served: usize, changes: &mut Changes) {
-        let mut after = served - changes.remove.len() + changes.add.len();
-        for (name, u) in &self.unserved {
-            if after >= self.config.sources.max_sources {
-                return;
-            }
-            if let Unserved::Failed(r) = u {
-                if r.is_due(now) && !changes.add.contains(name) {
-                    changes.add.push(name.clone());
-                    after += 1;
-                }
-            }
-        }
-    }
-
     /// Adds to `changes` the `found` velocity services that are not served yet, up to
-    /// `sources.max_sources`; forgets unserved sources whose service is gone (a failed
-    /// static source stays: it is retried for as long as ghnetd runs).
+    /// `sources.max_sources` (see [`Roster::discover`]).
     fn discover(&mut self, found: BTreeSet<String>, sources: &[Source], changes: &mut Changes) {
-        let before = self.unserved.len();
-        let statics = &self.config.sources.static_sources;
-        self.unserved
-            .retain(|name, _| found.contains(name) || statics.contains(name));
-        let mut roster_changed = self.unserved.len() != before;
-        let max = self.config.sources.max_sources;
-        let mut served = sources.len() - changes.remove.len();
-        for name in found {
-            let failed = matches!(self.unserved.get(&name), Some(Unserved::Failed(_)));
-            if failed || sources.iter().any(|s| s.name == name) {
-                continue;
-            }
-            if served >= max {
-                if let Entry::Vacant(e) = self.unserved.entry(name) {
-                    warn!(source = %e.key(), max_sources = max, "source ignored: sources.max_sources reached");
-                    e.insert(Unserved::OverLimit);
-                    roster_changed = true;
-                }
-                continue;
-            }
-            served += 1;
-            changes.add.push(name);
-        }
-        if roster_changed {
+        let (statics, max) = (
+            &self.config.sources.static_sources,
+            self.config.sources.max_sources,
+        );
+        let served = |name: &str| sources.iter().any(|s| s.name == name);
+        let served_after = sources.len() - changes.remove.len();
+        if self
+            .roster
+            .discover(found, statics, served, served_after, max, changes)
+        {
             self.publish_roster();
         }
     }
 
     /// Applies what housekeeping found: drops the sources that are gone (their
     /// counters kept for the stats and for their return), opens the new ones.
-    fn apply(&mut self, changes: Changes, sources: &mut Vec<Source>) {
+    fn apply(&mut self, changes: Changes, sources: &mut Sources) {
         // Highest index first so swap_remove does not move an index still to come.
         let mut remove = changes.remove;
         remove.sort_unstable_by(|a, b| b.cmp(a));
         for i in remove {
-            let s = sources.swap_remove(i);
-            s.forget_history();
-            s.log_counters("source removed: no publishers left");
+            let (s, mut state) = sources.swap_remove(i);
+            state.forget_history();
+            s.log_counters(&state, "source removed: no publishers left");
             self.retired
                 .entry(s.name.clone())
                 .or_default()
-                .add(&s.counters());
+                .add(&state.counters());
             self.removed += 1;
             if let Some(z) = &self.zenoh {
-                z.set_served(
-                    &s.name,
-                    &s.state.borrow(),
-                    false,
-                    (self.added, self.removed),
-                );
+                z.set_served(&s.name, &state.view(), false, (self.added, self.removed));
             }
         }
         for name in changes.add {
@@ -625,50 +577,22 @@ impl Daemon {
                 // A discovered source is only served if a publisher is really there:
                 // the service may be a leftover or still being set up; the next pass
                 // looks again.
-                Ok(s) if kind == Kind::Static || s.velocity.publisher_count() > 0 => {
+                Ok(s) if kind == Kind::Static || s.0.velocity.publisher_count() > 0 => {
                     self.budget.learn(before);
                     self.add(s, sources)
                 }
                 Ok(_) => {
                     debug!(source = %name, "velocity service without publishers; not served yet")
                 }
-                Err(reason) => self.failed(name, kind, reason),
+                Err(reason) => self.roster.failed(name, kind, reason),
             }
         }
         self.publish_roster();
     }
 
-    /// Records that `name` could not be opened; warns the first time and when the
-    /// reason changes, and schedules the next try.
-    fn failed(&mut self, name: String, kind: Kind, reason: String) {
-        let what = match kind {
-            Kind::Static => "cannot serve static source",
-            Kind::Discovered => "cannot serve discovered source",
-        };
-        match self.unserved.get_mut(&name) {
-            Some(Unserved::Failed(r)) => {
-                let changed = r.reason != reason;
-                r.failed_again(reason, Instant::now());
-                match changed {
-                    true => {
-                        warn!(source = %name, error = %r.reason, retries = r.retries, "{what}")
-                    }
-                    false => {
-                        debug!(source = %name, retries = r.retries, retry_in_ms = r.backoff_ms(), "still cannot serve source")
-                    }
-                }
-            }
-            _ => {
-                warn!(source = %name, error = %reason, "{what}; retrying with backoff");
-                let retry = Retry::new(reason, Instant::now());
-                self.unserved.insert(name, Unserved::Failed(retry));
-            }
-        }
-    }
-
     /// Opens `name`'s ports; its counters continue where they stopped if it was
     /// served before.
-    fn open_source(&self, name: &str, kind: Kind) -> anyhow::Result<Source> {
+    fn open_source(&self, name: &str, kind: Kind) -> anyhow::Result<(Source, State)> {
         let counters = self.retired.get(name).copied().unwrap_or_default();
         Source::open(
             &self.node,
@@ -677,74 +601,63 @@ impl Daemon {
             name,
             kind,
             counters,
-            self.runner.history(self.config.model.platform_of(name)),
+            self.runner.stream(self.config.model.platform_of(name)),
         )
     }
 
-    fn add(&mut self, source: Source, sources: &mut Vec<Source>) {
+    fn add(&mut self, (source, state): (Source, State), sources: &mut Sources) {
         source.log_added();
         // Its counters live on in the source now.
         self.retired.remove(&source.name);
-        if let Some(Unserved::Failed(r)) = self.unserved.remove(&source.name) {
-            info!(source = %source.name, retries = r.retries, "source served after all (was unserved: {})", r.reason);
-        }
+        self.roster.served(&source.name);
         self.added += 1;
         if let Some(z) = &self.zenoh {
             z.set_served(
                 &source.name,
-                &source.state.borrow(),
+                &state.view(),
                 true,
                 (self.added, self.removed),
             );
         }
-        sources.push(source);
+        sources.push((source, state));
     }
 
     /// Hands the unserved sources and the add/remove totals to the stats queryable.
     fn publish_roster(&self) {
         if let Some(z) = &self.zenoh {
-            let max = self.config.sources.max_sources;
-            let unserved = self
-                .unserved
-                .iter()
-                .map(|(name, u)| (name.clone(), (u.reason(max), u.retries())))
-                .collect();
+            let unserved = self.roster.listing(self.config.sources.max_sources);
             z.set_roster(&unserved, self.added, self.removed);
         }
     }
 
-    fn stats(&self, sources: &[Source]) -> Stats {
+    fn stats(&self, sources: &Sources) -> Stats {
         let mut counters = self.retired.clone();
-        for s in sources {
+        for (s, state) in sources.ports.iter().zip(&sources.states) {
             counters
                 .entry(s.name.clone())
                 .or_default()
-                .add(&s.counters());
+                .add(&state.counters());
         }
-        let max = self.config.sources.max_sources;
+        let listing = self.roster.listing(self.config.sources.max_sources);
         Stats {
             sources: counters,
             sources_added: self.added,
             sources_removed: self.removed,
-            unserved: self
-                .unserved
-                .iter()
-                .map(|(name, u)| (name.clone(), u.reason(max)))
+            unserved_retries: (listing.iter())
+                .map(|(name, (_, retries))| (name.clone(), *retries))
                 .collect(),
-            unserved_retries: self
-                .unserved
-                .iter()
-                .map(|(name, u)| (name.clone(), u.retries()))
+            unserved: (listing.into_iter())
+                .map(|(name, (reason, _))| (name, reason))
                 .collect(),
         }
     }
 
-    fn log_stats(&self, sources: &[Source]) {
-        if sources.is_empty() {
+    fn log_stats(&self, ports: &[Source], states: &[State]) {
+        if ports.is_empty() {
             debug!("stats: no sources served");
         }
-        for s in sources {
-            s.log_counters("stats");
+        for (s, state) in ports.iter().zip(states) {
+            s.log_counters(state, "stats");
         }
     }
 }
@@ -756,49 +669,4 @@ fn load_model(name: &str) -> anyhow::Result<Arc<Model>> {
     let model =
         Model::from_name_or_path(name).map_err(|e| anyhow::anyhow!("model.name `{name}`: {e}"))?;
     Ok(Arc::new(model))
-}
-
-/// The daemon's one iceoryx2 node, after cleaning up what dead processes left.
-fn open_node(iox_config: &IoxConfig) -> anyhow::Result<Node<ipc::Service>> {
-    // Signals belong to the embedding program; iceoryx2 must not consume them.
-    let node = NodeBuilder::new()
-        .name(&NodeName::new("ghnetd").expect("valid node name"))
-        .config(iox_config)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()
-        .context("cannot create the iceoryx2 node (check permissions of /dev/shm and the iceoryx2 root path)")?;
-    restrict_global_segment(iox_config);
-    // Node creation already cleans up after dead nodes (iceoryx2 default); this
-    // makes it explicit and visible after a kill -9.
-    let cleanup = node.try_cleanup_dead_nodes();
-    if cleanup.cleanups > 0 || cleanup.failed_cleanups > 0 {
-        info!(
-            cleaned = cleanup.cleanups,
-            failed = cleanup.failed_cleanups,
-            "removed stale iceoryx2 resources of dead processes"
-        );
-    }
-    Ok(node)
-}
-
-/// iceoryx2 0.10 creates its per-prefix management segment
-/// (`/dev/shm/<global prefix>…global_mgmt`) with mode 0666, unaffected by the umask;
-/// everything else it creates is owner-only or below the (owner-only) root path.
-/// Narrow it to the owner when this process owns it; failures only cost the
-/// hardening, so they are logged, not fatal.
-fn restrict_global_segment(iox: &IoxConfig) {
-    use std::os::unix::fs::PermissionsExt;
-    let prefix = iox.global.prefix.to_string();
-    let Ok(entries) = std::fs::read_dir("/dev/shm") else {
-        return;
-    };
-    for e in entries.flatten() {
-        let name = e.file_name().to_string_lossy().into_owned();
-        if name.starts_with(&prefix) && name.ends_with("global_mgmt") {
-            let perms = std::fs::Permissions::from_mode(0o600);
-            if let Err(err) = std::fs::set_permissions(e.path(), perms) {
-                debug!(file = %e.path().display(), error = %err, "cannot restrict iceoryx2 management segment");
-            }
-        }
-    }
 }

@@ -1,25 +1,23 @@
-//! One served source: its ports (made once, when the source is added) and the state
-//! that changes while serving it, in one struct.
+//! One served source: its ports ([`Source`], made once, when the source is added) and
+//! the state that changes while serving it ([`State`]), two values.
 //!
 //! The event loop's WaitSet guards borrow every source's listener for as long as the
-//! set of sources stays the same, so serving a source must work through a shared
-//! borrow: the ports need nothing more, and the state sits in a `RefCell`, borrowed
-//! mutably for one sample or one housekeeping step at a time (one thread, so never
-//! contended; the check is a flag test).
+//! set of sources stays the same, so the ports are only ever borrowed shared, while
+//! the states, kept apart beside them ([`Sources`]), are borrowed mutably: no cell.
 
-use std::cell::RefCell;
 use std::time::{Duration, Instant};
 
 use ghnet_client::iceoryx2::prelude::*;
 use ghnet_client::{
     HeadingEstimate, HeadingPublisher, IpcConfig, VelocitySample, VelocitySubscriber,
 };
+use ghnet_models::{Runner, SourceStream};
 use tracing::{debug, info, warn};
 
-use crate::answer::{stale_message, Batch, Counters, Limits, ModelTag, Tracker};
-use crate::history::{Runner, SourceHistory};
+use crate::answer::{stale_message, Batch, Counters, ModelTag, Tracker};
+use crate::latency::LatencyRing;
 use crate::output::{Burst, HeadingOutput};
-use crate::remote::{LatencyRing, ZenohSide};
+use crate::remote::{SourceView, ZenohSide};
 
 /// How a source came to be served.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,15 +47,35 @@ pub(crate) struct Source {
     /// Every destination of this source's answers; the iceoryx2 heading service
     /// first. Boxed once per source, so per sample only a virtual call.
     outputs: Vec<Box<dyn HeadingOutput>>,
-    pub(crate) state: RefCell<State>,
+}
+
+/// The served sources: ports and states side by side, the same index in both.
+#[derive(Default)]
+pub(crate) struct Sources {
+    /// Borrowed by the WaitSet guards while the set stays the same.
+    pub(crate) ports: Vec<Source>,
+    /// Changed by every sample and housekeeping pass.
+    pub(crate) states: Vec<State>,
+}
+
+impl Sources {
+    /// Adds a source.
+    pub(crate) fn push(&mut self, (source, state): (Source, State)) {
+        self.ports.push(source);
+        self.states.push(state);
+    }
+
+    /// Removes the source at `i`, the last taking its place.
+    pub(crate) fn swap_remove(&mut self, i: usize) -> (Source, State) {
+        (self.ports.swap_remove(i), self.states.swap_remove(i))
+    }
 }
 
 /// Everything that changes while serving a source.
 pub(crate) struct State {
+    /// The source's rules, history and counters; made when the source is opened, so
+    /// a source that comes back starts afresh (its counters continue).
     pub(crate) tracker: Tracker,
-    /// A stateful model's history of this source (`None` for a per-epoch model);
-    /// made when the source is opened, so a source that comes back starts afresh.
-    pub(crate) history: Option<SourceHistory>,
     /// The last answer and recent processing times, for the Zenoh stats queryable
     /// (`last` is also what a `Stale` message echoes).
     pub(crate) last: Option<HeadingEstimate>,
@@ -69,9 +87,25 @@ pub(crate) struct State {
 }
 
 impl State {
-    /// What the model's steps take of this state: the tracker and the history.
-    pub(crate) fn model_parts(&mut self) -> (&mut Tracker, Option<&mut SourceHistory>) {
-        (&mut self.tracker, self.history.as_mut())
+    /// Drops what the model knows of this source because its publishers are gone:
+    /// the vehicle may move before one comes back. Counted in `resets_restart` when
+    /// the history had something in it.
+    pub(crate) fn forget_history(&mut self) {
+        self.tracker.stream.restart();
+    }
+
+    /// The counters so far.
+    pub(crate) fn counters(&self) -> Counters {
+        self.tracker.counters()
+    }
+
+    /// What the stats snapshot takes of this state.
+    pub(crate) fn view(&self) -> SourceView<'_> {
+        SourceView {
+            counters: self.tracker.counters(),
+            last: self.last,
+            latency: &self.latency,
+        }
     }
 
     /// Books `s` and answers it with `runner`, through this source's history for a
@@ -80,10 +114,9 @@ impl State {
         &mut self,
         s: &VelocitySample,
         runner: &mut Runner,
-        limits: &Limits,
         tag: &ModelTag,
     ) -> HeadingEstimate {
-        runner.answer(&mut self.tracker, self.history.as_mut(), s, limits, tag)
+        self.tracker.answer(s, runner, tag)
     }
 }
 
@@ -99,8 +132,8 @@ struct Silence {
 impl Source {
     /// Opens the ports of `name` on `node`: the velocity subscriber, the iceoryx2
     /// heading publisher and, with Zenoh on, the Zenoh heading publishers. The
-    /// counters continue `counters` (a source that comes back keeps its totals); the
-    /// sequence tracking and the model's `history` start afresh, since a new
+    /// counters continue `counters` (a source that comes back keeps its totals); its
+    /// `stream` is new (sequence tracking and history start afresh), since a new
     /// publisher may restart its sequence numbers and its vehicle may have moved.
     pub(crate) fn open(
         node: &Node<ipc::Service>,
@@ -109,8 +142,8 @@ impl Source {
         name: &str,
         kind: Kind,
         counters: Counters,
-        history: Option<SourceHistory>,
-    ) -> anyhow::Result<Self> {
+        stream: SourceStream,
+    ) -> anyhow::Result<(Self, State)> {
         let velocity = VelocitySubscriber::with_node(node, ipc, name)?;
         let heading = HeadingPublisher::with_node(node, ipc, name)?;
         let heading_service = heading.service_name().to_owned();
@@ -118,26 +151,26 @@ impl Source {
         if let Some(z) = zenoh {
             outputs.push(Box::new(z.output(ipc, name)?));
         }
-        let tracker = Tracker::resume(counters);
-        Ok(Self {
+        let tracker = Tracker::resume(stream, counters);
+        let state = State {
+            silence: Silence {
+                seen_received: tracker.counters().received,
+                last_activity: Instant::now(),
+                stale_sent: false,
+            },
+            tracker,
+            last: None,
+            latency: LatencyRing::new(),
+            snapshot_behind: false,
+        };
+        let ports = Self {
             name: name.to_owned(),
             kind,
             velocity,
             heading_service,
             outputs,
-            state: RefCell::new(State {
-                silence: Silence {
-                    seen_received: tracker.counters.received,
-                    last_activity: Instant::now(),
-                    stale_sent: false,
-                },
-                tracker,
-                history,
-                last: None,
-                latency: LatencyRing::new(),
-                snapshot_behind: false,
-            }),
-        })
+        };
+        Ok((ports, state))
     }
 
     pub(crate) fn log_added(&self) {
@@ -150,15 +183,10 @@ impl Source {
         );
     }
 
-    /// The counters so far.
-    pub(crate) fn counters(&self) -> Counters {
-        self.state.borrow().tracker.counters
-    }
-
-    /// Logs the counters with `what` as the message (the periodic `stats` line, and
-    /// `source removed`).
-    pub(crate) fn log_counters(&self, what: &str) {
-        let c = self.counters();
+    /// Logs the counters in `state` with `what` as the message (the periodic `stats`
+    /// line, and `source removed`).
+    pub(crate) fn log_counters(&self, state: &State, what: &str) {
+        let c = state.counters();
         info!(
             source = %self.name,
             received = c.received,
@@ -213,19 +241,6 @@ impl Source {
         false
     }
 
-    /// Drops what the model knows of this source because its publishers are gone:
-    /// the vehicle may move before one comes back. Counted in `resets_restart` when
-    /// the history had something in it.
-    pub(crate) fn forget_history(&self) {
-        let mut state = self.state.borrow_mut();
-        let State {
-            tracker, history, ..
-        } = &mut *state;
-        if let Some(h) = history {
-            h.restart(&mut tracker.counters);
-        }
-    }
-
     /// Stamps the processing time (since `t0`) on `answer`, publishes it on every
     /// output and books the result; `true` if every output took it.
     pub(crate) fn deliver(
@@ -243,13 +258,13 @@ impl Source {
             if let Err(e) = out.publish(&answer, burst) {
                 delivered = false;
                 // 1st, 2nd, 4th, 8th, ... failure: visible without flooding the log.
-                let n = state.tracker.counters.send_errors + 1;
+                let n = state.tracker.delivery.send_errors + 1;
                 if n.is_power_of_two() {
                     warn!(source = %self.name, output = out.kind(), error = %e, failures = n, "cannot publish heading");
                 }
             }
         }
-        let c = &mut state.tracker.counters;
+        let c = &mut state.tracker.delivery;
         if delivered {
             c.answered += 1;
         } else {
@@ -261,7 +276,7 @@ impl Source {
     /// Ends this source's part of a wake-up: wakes its iceoryx2 listeners once for
     /// all its answers (`flush`, if it answered any) and refreshes its Zenoh stats
     /// snapshot.
-    pub(crate) fn settle(&self, answered_any: bool, zenoh: Option<&ZenohSide>) {
+    pub(crate) fn settle(&self, state: &mut State, answered_any: bool, zenoh: Option<&ZenohSide>) {
         if answered_any {
             for out in &self.outputs {
                 if let Err(e) = out.flush() {
@@ -270,17 +285,15 @@ impl Source {
             }
         }
         if let Some(z) = zenoh {
-            let mut state = self.state.borrow_mut();
-            state.snapshot_behind = !z.refresh(&self.name, &state);
+            state.snapshot_behind = !z.refresh(&self.name, &state.view());
         }
     }
 
     /// Housekeeping: refreshes the stats snapshot if a query kept the last refresh
     /// out, so a source that went quiet right after is not reported stale forever.
-    pub(crate) fn catch_up_snapshot(&self, zenoh: Option<&ZenohSide>) {
-        let mut state = self.state.borrow_mut();
+    pub(crate) fn catch_up_snapshot(&self, state: &mut State, zenoh: Option<&ZenohSide>) {
         if let (Some(z), true) = (zenoh, state.snapshot_behind) {
-            state.snapshot_behind = !z.refresh(&self.name, &state);
+            state.snapshot_behind = !z.refresh(&self.name, &state.view());
         }
     }
 
@@ -288,8 +301,7 @@ impl Source {
     /// `Stale` message if one is due: housekeeping drops it. A source that answered
     /// something is kept until its Stale message, so consumers of a crashed source
     /// learn it (one that never sent anything has nothing to be stale about).
-    pub(crate) fn is_gone(&self, stale_after: Option<Duration>) -> bool {
-        let state = self.state.borrow();
+    pub(crate) fn is_gone(&self, state: &State, stale_after: Option<Duration>) -> bool {
         let stale_pending =
             stale_after.is_some() && state.last.is_some() && !state.silence.stale_sent;
         self.kind == Kind::Discovered && self.velocity.publisher_count() == 0 && !stale_pending
@@ -302,18 +314,18 @@ impl Source {
     /// two housekeeping intervals after the last sample.
     pub(crate) fn watch_silence(
         &self,
+        state: &mut State,
         now: Instant,
         stale_after: Option<Duration>,
         zenoh: Option<&ZenohSide>,
     ) {
-        let mut state = self.state.borrow_mut();
         let State {
             tracker,
             last,
             silence,
             ..
-        } = &mut *state;
-        let received = tracker.counters.received;
+        } = state;
+        let received = tracker.stream.counts().received;
         if received != silence.seen_received {
             silence.seen_received = received;
             silence.last_activity = now;
@@ -331,10 +343,10 @@ impl Source {
             return;
         }
         silence.stale_sent = true;
-        tracker.counters.stale += 1;
+        tracker.delivery.stale += 1;
         self.publish_stale(&last, silent);
         if let Some(z) = zenoh {
-            state.snapshot_behind = !z.refresh(&self.name, &state);
+            state.snapshot_behind = !z.refresh(&self.name, &state.view());
         }
     }
 

@@ -3,11 +3,11 @@
 //!
 //! - the config TOML parser and validation: arbitrary text and arbitrary key/value
 //!   trees near the real schema give `Ok` or a one-line error, never a panic;
-//! - the per-sample answer path ([`ghnetd::answer::Tracker`] and, for the stateful
-//!   default model, the source's history, [`ghnetd::history::Runner`]): arbitrary bit
-//!   patterns in every `VelocitySample` field give exactly one answer with a known
-//!   status, the echoed seq and timestamp, and counters that agree with a reference
-//!   count (each history reset has its cause counted);
+//! - the sample rules ghnetd runs per source ([`ghnet_models::SourceStream`] through
+//!   [`ghnet_models::Runner`], the stateful default model): arbitrary bit patterns in
+//!   every `VelocitySample` field give exactly one answer with a known status, and
+//!   counts that agree with a reference count (each history reset has its cause
+//!   counted);
 //! - the same through a real in-process ghnetd over real iceoryx2: every sample
 //!   answered once, `received == answered + send_errors`, `invalid` equal to the
 //!   `InvalidInput` answers seen.
@@ -24,8 +24,7 @@ use common::{next_answer, InProcess};
 use ghnet_client::{
     flags, HeadingEstimate, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample,
 };
-use ghnetd::answer::{Limits, ModelTag, Tracker};
-use ghnetd::history::Runner;
+use ghnet_models::{Prediction, Runner, Sample, Status};
 use ghnetd::Config;
 use proptest::prelude::*;
 use proptest::test_runner::{Config as PtConfig, TestRunner};
@@ -242,52 +241,68 @@ fn model() -> Arc<ghnet_models::Model> {
     Arc::new(ghnet_models::Model::builtin(ghnet_models::DEFAULT_MODEL).unwrap())
 }
 
+/// A wire sample as ghnetd hands it to the rules (`V_DOWN_UNKNOWN`: no down velocity).
+fn rules_view(s: &VelocitySample) -> Sample {
+    Sample {
+        seq: s.seq,
+        t_s: s.timestamp_ns as f64 * 1e-9,
+        v_north: s.v_north,
+        v_east: s.v_east,
+        v_down: [s.v_down, 0.0][usize::from(s.flags & flags::V_DOWN_UNKNOWN != 0)],
+        speed_acc: s.speed_accuracy,
+        flagged: s.flags & flags::INVALID != 0,
+    }
+}
+
+/// A prediction: invalid with NaN heading and σ, or a heading in [0, 360).
+fn check_prediction(s: &VelocitySample, p: &Prediction) -> Result<(), TestCaseError> {
+    if p.status == Status::Invalid {
+        prop_assert!(p.heading_deg.is_nan() && p.std_deg.is_nan(), "{:?}", p);
+    } else {
+        prop_assert!((0.0..360.0).contains(&p.heading_deg), "{:?} for {:?}", p, s);
+        prop_assert!(p.std_deg >= 0.0 && p.speed.is_finite(), "{:?}", p);
+    }
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
 
-    /// The per-sample path against a reference count of gaps, duplicates and
-    /// backwards time (saturating, like the daemon).
+    /// The sample rules against a reference count of gaps, duplicates and backwards
+    /// time (saturating, like the daemon).
     #[test]
-    fn answer_path_arbitrary_samples(samples in stream()) {
-        let model = model();
-        let tag = ModelTag {
-            id: model.id(),
-            name: HeadingEstimate::encode_model_name(model.name()),
-        };
-        let mut runner = Runner::new(model, Default::default(), None);
-        let mut history = runner.history(None);
-        let limits = Limits { max_speed: 100.0 };
-        let mut t = Tracker::default();
+    fn sample_rules_arbitrary_samples(samples in stream()) {
+        let mut runner = Runner::new(model(), Default::default(), None);
+        let mut src = runner.stream(None);
         let (mut gaps, mut dups, mut back, mut invalid) = (0u64, 0u64, 0u64, 0u64);
-        let mut last: Option<&VelocitySample> = None;
+        let mut last: Option<Sample> = None;
         for s in &samples {
-            let h = runner.answer(&mut t, history.as_mut(), s, &limits, &tag);
-            check_answer(s, &h)?;
+            let r = rules_view(s);
+            let p = runner.answer(&mut src, &r);
+            check_prediction(s, &p)?;
             let mut backwards = false;
             if let Some(l) = last {
-                if s.seq > l.seq {
-                    gaps = gaps.saturating_add(s.seq - l.seq - 1);
+                if r.seq > l.seq {
+                    gaps = gaps.saturating_add(r.seq - l.seq - 1);
                 } else {
                     dups += 1;
                 }
-                backwards = s.timestamp_ns < l.timestamp_ns;
+                backwards = r.t_s < l.t_s;
             }
             back += u64::from(backwards);
-            invalid += u64::from(h.heading_status() == Some(HeadingStatus::InvalidInput));
+            invalid += u64::from(p.status == Status::Invalid);
             if backwards {
-                prop_assert_eq!(h.heading_status(), Some(HeadingStatus::InvalidInput));
+                prop_assert_eq!(p.status, Status::Invalid);
             }
-            last = Some(s);
+            last = Some(r);
         }
-        let c = t.counters;
+        let c = *src.counts();
         prop_assert_eq!(c.received, samples.len() as u64);
         prop_assert_eq!((c.gaps, c.duplicates, c.backwards, c.invalid), (gaps, dups, back, invalid));
         // A backwards reset needs a backwards sample, a restart a lower seq (a duplicate).
         prop_assert!(c.resets_backwards <= c.backwards && c.resets_restart <= c.duplicates);
-        if let Some(h) = &history {
-            let r = h.history().resets();
-            prop_assert_eq!((r.gap, r.backwards, r.explicit), (c.resets_gap, c.resets_backwards, c.resets_restart));
-        }
+        let r = src.history().expect("a stateful model").resets();
+        prop_assert_eq!((r.gap, r.backwards, r.explicit), (c.resets_gap, c.resets_backwards, c.resets_restart));
     }
 }
 

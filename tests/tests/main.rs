@@ -7,6 +7,7 @@
 //! - `echo` — answers equal the in-process model, exactly once, in order; `invalid`,
 //!   `bad_input` — every row of the bad-input table; `config` — start-up errors.
 //! - `discovery` — sources that appear at run time, sources that never cross.
+//! - `live_offline` — a tricky log answered alike by a real ghnetd and `ghnet infer`.
 //! - `history` — stateful models: `Held` stops, answers equal to the in-process
 //!   `StreamPredictor` to the bit, per-source histories, resets and their counters.
 //! - `crash`, `faults`, `shutdown` — `kill -9` of the daemon, a publisher or a
@@ -41,6 +42,7 @@ mod fleet;
 mod gnss;
 mod history;
 mod invalid;
+mod live_offline;
 mod netns;
 mod pressure;
 mod python;

@@ -19,13 +19,16 @@
 //!   measurement σ = σ_v/ŝ, the baseline every table shows.
 //! * **per-epoch** models (`paper-s1`, `ghnet-epoch`) ignore the history.
 //!
-//! History rules, the same in ghnetd and in `ghnet infer`: epochs of one source in
-//! arrival order; the history is cleared when time goes backwards, when a time step is
-//! longer than the model's `max_gap_s` (the vehicle may have turned anywhere meanwhile),
-//! and on an explicit [`History::reset`] (a restarted source). Each clearing is counted
+//! History rules: epochs of one source in arrival order; the history is cleared when a
+//! time step is longer than the model's `max_gap_s` (the vehicle may have turned
+//! anywhere meanwhile), when time goes backwards, and on an explicit
+//! [`History::reset`] (a restarted source). Each clearing is counted
 //! ([`History::resets`]). A gap keeps what the temporal model learnt about the vehicle
 //! (car or platform, the receiver's noise), not its heading. Invalid epochs are answered
-//! `Invalid` and leave the history as it was.
+//! `Invalid` and leave the history as it was. A served source's samples reach the
+//! history through [`crate::SourceStream`], whose rules come first (a sample whose time
+//! goes backwards is answered `Invalid` there and never arrives here): that is what
+//! ghnetd and `ghnet infer` both drive.
 //!
 //! A stopped vehicle that has a heading from its history is answered [`Status::Held`]
 //! with that heading and a σ that grows with the time stopped; without one it is
@@ -37,27 +40,19 @@
 
 use std::sync::Arc;
 
-use crate::head::{
-    accuracy_sigma_base, filter_step, heading_deg, scale_input, KalmanBase, MAX_STD_DEG,
-};
-use crate::model::{finish_epoch, Engine, Model, Prediction, Status, StatusPolicy};
+use crate::head::{filter_step, heading_deg, scale_input, KalmanBase, MAX_STD_DEG};
+use crate::model::{Engine, Model};
 use crate::modes::{commit, prepare, Step};
 use crate::net::Scratch;
+use crate::prediction::{finish_epoch, Prediction, Status, StatusPolicy};
+use crate::step::log_sigma_cap;
 use crate::weights::ModelKind;
+
+pub use crate::window::WindowHead;
 
 pub use crate::modes::{Platform, StepState};
 
-/// Per-epoch inputs of the temporal network (see [`inputs`]).
-pub const INPUTS: usize = 20;
-
-/// Speed (m/s) above which an epoch counts as moving for the Kalman filter's clock of
-/// time stopped, when the receiver's accuracy does not demand more.
-pub const MOVING_SPEED: f32 = 0.5;
-
-/// Largest σ in radians (a uniform error on the circle), as a log: the "no heading" σ.
-fn log_sigma_cap() -> f32 {
-    MAX_STD_DEG.to_radians().ln()
-}
+pub use crate::step::{advance, inputs, kalman_base, moving, reported_sigma, INPUTS, MOVING_SPEED};
 
 /// One epoch of one source.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -92,264 +87,6 @@ pub struct ResetCounts {
     pub backwards: u64,
     /// Explicit resets.
     pub explicit: u64,
-}
-
-/// Whether an epoch counts as moving: over [`MOVING_SPEED`] and over 4 σ of the
-/// receiver's reported noise.
-#[inline]
-pub fn moving(speed: f32, speed_acc: f32) -> bool {
-    speed >= MOVING_SPEED && !(speed_acc.is_finite() && speed < 4.0 * speed_acc)
-}
-
-/// The Kalman step of an epoch for a model of `kind` (temporal or kf) from the
-/// history's state: prior variance (previous σ² plus `q²·dt`; a uniform error without a
-/// previous heading) and measurement variance `(σ_v/ŝ)²`.
-pub fn kalman_base(
-    kind: &ModelKind,
-    state: &StepState,
-    v_north: f32,
-    v_east: f32,
-    dt: f32,
-) -> KalmanBase {
-    let (q, sv) = match *kind {
-        ModelKind::Temporal {
-            q_deg_per_sqrt_s,
-            sigma_v_mps,
-            ..
-        }
-        | ModelKind::Kf {
-            q_deg_per_sqrt_s,
-            sigma_v_mps,
-            ..
-        } => (q_deg_per_sqrt_s.to_radians(), sigma_v_mps),
-        ModelKind::Epoch => (0.0, f32::NAN),
-    };
-    let cap = MAX_STD_DEG.to_radians();
-    let r = accuracy_sigma_base(v_north, v_east, sv).unwrap_or(cap);
-    let p = if state.has_prior {
-        crate::modes::random_walk_variance(state.log_sigma, q, dt)
-    } else {
-        cap * cap
-    };
-    KalmanBase { p, r2: r * r }
-}
-
-/// The temporal network's per-epoch inputs, all O(1), from the state before the epoch
-/// (`prev`), the state after the mode filter's rules (`st`) and the prepared `step`:
-/// the course relative to the step's prior `(cos, sin)`; log and linear speed; the log
-/// sAcc and whether sAcc is known; the logs of the prior σ, the measurement σ, dt, the
-/// time stopped and the time in the current mode; the Kalman gain; the rule's mode and
-/// the previous mode; whether the vehicle is a car, the epoch moves, the glitch gate
-/// fired, the step only holds (before the first motion); the log receiver-noise
-/// estimate; and the log acceleration from the last used velocity. Relative angles make
-/// the network rotation-invariant.
-pub fn inputs(
-    prev: &StepState,
-    st: &StepState,
-    step: &Step,
-    v_north: f32,
-    v_east: f32,
-    speed_acc: f32,
-    dt: f32,
-) -> [f32; INPUTS] {
-    let speed = step.speed;
-    let (s, c) = (step.course - step.prior).sin_cos();
-    let cap = log_sigma_cap();
-    // Clamped both ways: a receiver may claim any finite accuracy (f32::MAX seeds the
-    // noise estimate), and an infinite input would make every output NaN.
-    let log = |v: f32| 0.5 * v.clamp(1e-12, 1e12).ln();
-    let flag = |b: bool| if b { 1.0 } else { 0.0 };
-    let accel = if prev.prev_v[0].is_finite() && dt > 0.0 {
-        (v_north - prev.prev_v[0]).hypot(v_east - prev.prev_v[1]) / dt
-    } else {
-        0.0
-    };
-    [
-        c,
-        s,
-        0.5 * (speed + 0.02).ln(),
-        speed.min(40.0) / 10.0,
-        if speed_acc.is_finite() {
-            log(speed_acc * speed_acc)
-        } else {
-            0.0
-        },
-        flag(speed_acc.is_finite()),
-        log(step.p).min(cap),
-        log(step.r2).min(cap),
-        step.k,
-        0.5 * dt.clamp(0.01, 1000.0).ln(),
-        0.5 * prev.t_still.min(1e4).ln_1p(),
-        0.5 * prev.t_mode.min(1e4).ln_1p(),
-        flag(step.rule_reverse),
-        flag(prev.reverse),
-        flag(st.vehicle.car),
-        flag(step.moving),
-        flag(step.glitch),
-        flag(step.hold),
-        log(st.vehicle.noise * st.vehicle.noise),
-        0.5 * accel.min(1e3).ln_1p(),
-    ]
-}
-
-/// The state after an epoch of the Kalman filter (or a per-epoch model) answered with
-/// heading `psi` and raw `log_sigma`.
-pub fn advance(
-    state: &StepState,
-    v_north: f32,
-    v_east: f32,
-    speed_acc: f32,
-    dt: f32,
-    psi: f32,
-    log_sigma: f32,
-) -> StepState {
-    let mv = moving(v_north.hypot(v_east), speed_acc);
-    StepState {
-        psi: crate::head::wrap_rad(psi),
-        log_sigma,
-        has_prior: true,
-        t_still: if mv { 0.0 } else { state.t_still + dt },
-        ..*state
-    }
-}
-
-/// The reported σ (degrees) of a temporal step: the filter's `log σ` plus the
-/// network's correction `y2`, through the calibration map of the vehicle's class and
-/// state; the uniform σ while the step only holds (before the first motion, as `kf`
-/// answers). A moving car's σ leaves `y2` out when the maps say so
-/// ([`crate::modes::SigmaMaps::moving_without_y2`]): the filter's σ follows the
-/// receiver's noise, which `y2` had averaged away.
-///
-/// A standing car's heading cannot change, so the σ of a held heading is the one it
-/// stopped with, growing with time (`q_still`): the filter's, corrected by the
-/// network's `y2` of the last moving epoch (held in the state), not by each standing
-/// epoch's (trained on noise it cannot see through, it would only make σ jitter).
-/// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
-/// A car moving at speed then gains the turn term ([`crate::modes::SigmaMaps::with_turn`]).
-/// A moving epoch's σ is at least the course scatter the source has shown at speed
-/// over the speed ([`crate::modes::SigmaMaps::scatter_k`]) when that scatter exceeds
-/// the velocity noise the filter assumes (a receiver without sAcc, whose noise the
-/// filter can only guess) or [`crate::modes::SCATTER_RATIO_ACC`] times it (a
-/// receiver whose sAcc understates its noise by that much).
-///
-/// A misread direction is not added as a variance: it is a 180° jump, not a spread,
-/// and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior) swamped the
-/// filter's σ so that the map could no longer tell a good epoch from a poor one; the
-/// calibration map's tails cover misreads instead.
-pub fn reported_sigma(
-    step: &Step,
-    log_sigma: f32,
-    y2: f32,
-    st: &StepState,
-    maps: &crate::modes::SigmaMaps,
-) -> f32 {
-    if step.hold {
-        return MAX_STD_DEG;
-    }
-    // Moved by this step: a glitch the gate ignored is not motion (a car stays standing).
-    let moved = st.moving_now();
-    let y2 = if moved && st.vehicle.car && maps.moving_without_y2 {
-        0.0
-    } else if moved || !st.vehicle.car {
-        y2
-    } else {
-        st.held_y2
-    };
-    let s = (log_sigma + y2)
-        .clamp(crate::head::LOG_SIGMA_MIN, crate::head::LOG_SIGMA_MAX)
-        .exp();
-    let car = st.vehicle.car;
-    let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
-    let sigma = maps.with_turn(car, moved, step.speed, mapped, st.yaw);
-    let scatter = st.vehicle.scatter;
-    // Only a receiver noisier than the filter takes it to be: where the scatter is
-    // within the σ_v in use, the maps (fitted on such receivers) already know it.
-    let ratio = if step.has_acc {
-        crate::modes::SCATTER_RATIO_ACC
-    } else {
-        1.0
-    };
-    if moved
-        && maps.scatter_k > 0.0
-        && scatter.is_finite()
-        && step.speed > 0.0
-        && scatter.sqrt() > ratio * step.sigma_v
-    {
-        let floor = (maps.scatter_k * scatter.sqrt() / step.speed).to_degrees();
-        sigma.max(floor.min(MAX_STD_DEG))
-    } else {
-        sigma
-    }
-}
-
-/// The temporal head: the fully connected layers collapsed to `y = W·[f_t, …, f_{t−W+1}]
-/// + b` over the cached features of the last `window` epochs.
-#[derive(Debug, Clone)]
-pub struct WindowHead {
-    window: usize,
-    features: usize,
-    outputs: usize,
-    /// `outputs × (window·features)`, row-major; slot `k` (age in epochs) at columns
-    /// `k·features..`.
-    w: Vec<f32>,
-    b: Vec<f32>,
-}
-
-impl WindowHead {
-    /// From the collapsed map `w` (`outputs × window·features`) and bias.
-    pub fn new(w: faer::MatRef<'_, f32>, b: &[f32], window: usize) -> Self {
-        let (outputs, cols) = (w.nrows(), w.ncols());
-        assert!(window > 0 && cols.is_multiple_of(window) && b.len() == outputs);
-        Self {
-            window,
-            features: cols / window,
-            outputs,
-            w: (0..outputs)
-                .flat_map(|o| (0..cols).map(move |j| (o, j)))
-                .map(|(o, j)| w[(o, j)])
-                .collect(),
-            b: b.to_vec(),
-        }
-    }
-
-    /// Epochs in the window.
-    pub fn window(&self) -> usize {
-        self.window
-    }
-
-    /// Features per epoch.
-    pub fn features(&self) -> usize {
-        self.features
-    }
-
-    /// `out = W·ring + b` where `ring` holds `window` feature vectors and slot `k` (age
-    /// `k`, 0 = newest) is at `ring[((newest + window − k) % window)·features..]`; slots
-    /// `k ≥ filled` are empty (zero) and skipped.
-    pub fn apply(&self, ring: &[f32], newest: usize, filled: usize, out: &mut [f32]) {
-        let (w, c) = (self.window, self.features);
-        let cols = w * c;
-        for (o, y) in out.iter_mut().enumerate().take(self.outputs) {
-            let row = &self.w[o * cols..(o + 1) * cols];
-            // Eight partial sums: one running sum is a chain of dependent additions
-            // the compiler may not reorder; eight independent ones vectorise.
-            let mut acc = [0.0f32; 8];
-            for k in 0..filled.min(w) {
-                let slot = (newest + w - k) % w;
-                let f = &ring[slot * c..(slot + 1) * c];
-                let wk = &row[k * c..(k + 1) * c];
-                let (fc, wc) = (f.chunks_exact(8), wk.chunks_exact(8));
-                for (a, b) in fc.remainder().iter().zip(wc.remainder()) {
-                    acc[0] += a * b;
-                }
-                for (fs, ws) in fc.zip(wc) {
-                    for l in 0..8 {
-                        acc[l] += fs[l] * ws[l];
-                    }
-                }
-            }
-            *y = self.b[o] + acc.iter().sum::<f32>();
-        }
-    }
 }
 
 /// One source's history: the recurrent state, the time of the last epoch, the ring of
@@ -511,6 +248,15 @@ impl History {
         self.filled = (self.filled + 1).min(self.window);
         &mut self.ring[self.newest * c..(self.newest + 1) * c]
     }
+}
+
+/// Where a staged epoch is ([`StreamPredictor::stage`], [`crate::Runner::stage`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Staged {
+    /// Already answered (bad input, the rules, a model or batch that does not stage).
+    Answered(Prediction),
+    /// Waiting in this column of the batch for the pass and its completion.
+    Waiting(usize),
 }
 
 /// Epochs per pass of a [`StreamBatch`] through the convolutions: their activations
@@ -712,35 +458,33 @@ impl StreamPredictor {
     }
 
     /// Batched streaming, step 1: everything of [`predict`](Self::predict) before the
-    /// convolutions, for epoch `e` of the source whose history is `h`. `Ok(column)`
-    /// when the epoch waits in `batch` for [`run`](Self::run) and
-    /// [`complete`](Self::complete); `Err(answer)` when it is already answered (bad
-    /// input, a model without a temporal network, a full batch). Stage at most one
+    /// convolutions, for epoch `e` of the source whose history is `h`:
+    /// [`Staged::Waiting`] when the epoch waits in `batch` for [`run`](Self::run) and
+    /// [`complete`](Self::complete), [`Staged::Answered`] when it is already answered
+    /// (bad input, a model without a temporal network, a full batch). Stage at most one
     /// epoch per history between two runs, and complete every staged one: its
     /// history already counts its time.
     ///
     /// Why: a daemon serving many sources answers the epochs that arrived together in
     /// one pass through the convolutions, which reads the weights once for all of them
     /// instead of once per epoch; the answers are bit for bit those of `predict`.
-    pub fn stage(
-        &mut self,
-        batch: &mut StreamBatch,
-        h: &mut History,
-        e: &Epoch,
-    ) -> Result<usize, Prediction> {
+    pub fn stage(&mut self, batch: &mut StreamBatch, h: &mut History, e: &Epoch) -> Staged {
         if !matches!(self.model.engine(), Engine::Temporal { .. })
             || batch.pending.len() == batch.x.ncols()
         {
-            return Err(self.predict(h, e));
+            return Staged::Answered(self.predict(h, e));
         }
-        let (epoch, dt, had_prior) = self.open(h, e)?;
+        let (epoch, dt, had_prior) = match self.open(h, e) {
+            Ok(opened) => opened,
+            Err(p) => return Staged::Answered(p),
+        };
         let (pending, x) = begin(&self.model, h, epoch, dt, had_prior);
         let col = batch.pending.len();
         batch.pending.push(pending);
         for (i, v) in x.into_iter().enumerate() {
             batch.x[(i, col)] = v;
         }
-        Ok(col)
+        Staged::Waiting(col)
     }
 
     /// Batched streaming, step 2: the convolutions of every staged epoch, one pass.
@@ -969,8 +713,10 @@ mod tests {
                 let mut staged = vec![];
                 for (k, d) in sources.iter().enumerate().filter(|(_, d)| i < d.len()) {
                     match sp.stage(batch, &mut hs[k], &d[i]) {
-                        Ok(col) => staged.push((k, col)),
-                        Err(p) => assert_eq!(bits(&p), bits(&want[k][i]), "{name} {k} {i}"),
+                        Staged::Waiting(col) => staged.push((k, col)),
+                        Staged::Answered(p) => {
+                            assert_eq!(bits(&p), bits(&want[k][i]), "{name} {k} {i}")
+                        }
                     }
                 }
                 sp.run(batch);

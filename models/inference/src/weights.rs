@@ -381,6 +381,10 @@ pub const MAX_LAYERS: usize = 64;
 /// many feature vectors).
 pub const MAX_WINDOW: usize = 64;
 
+/// Per-epoch inputs of a temporal network: what `crate::stream::inputs` computes (and
+/// re-exports as `stream::INPUTS`); a temporal model file must declare exactly this.
+pub const TEMPORAL_INPUTS: usize = 20;
+
 /// The filter parameters of a `kind` (noise densities, the gap limit) divide and take
 /// roots, so each must be a positive finite number; `model` names the kind in the error.
 fn check_positive(model: &str, params: &[f32]) -> Result<(), WeightsError> {
@@ -423,12 +427,10 @@ fn check_arch(a: &Arch, kind: &ModelKind, head: &Head) -> Result<(), WeightsErro
             ..
         } => {
             check_positive("temporal", &[max_gap_s, q_deg_per_sqrt_s, sigma_v_mps])?;
-            if a.input != crate::stream::INPUTS || !(2..=MAX_WINDOW).contains(&a.window) {
+            if a.input != TEMPORAL_INPUTS || !(2..=MAX_WINDOW).contains(&a.window) {
                 return bad(format!(
                     "a temporal model needs input {} and window 2..={MAX_WINDOW} (got {}, {})",
-                    crate::stream::INPUTS,
-                    a.input,
-                    a.window
+                    TEMPORAL_INPUTS, a.input, a.window
                 ));
             }
             if *head != Head::Filter {

@@ -9,12 +9,16 @@
 //! `invalid` and empty heading fields; it never stops the file. Rows are read, answered
 //! and written in blocks, so memory does not grow with the file.
 //!
-//! Stateful models (the temporal default, `kf`; [`Streams`]) follow ghnetd's history
-//! rules: rows in file order, one history per value of a `track` column (all rows share
-//! one without it), time from `t_s` (seconds) or `timestamp_ns`, a history cleared when
-//! time goes backwards or jumps by more than the model's gap limit. Without a time
-//! column rows are taken as one second apart. A row whose time does not parse is
-//! `invalid`. Per-epoch models ignore all of this and run through the batch path.
+//! Stateful models (the temporal default, `kf`; [`Streams`]) answer each track through
+//! the sample rules ghnetd applies to a source (`ghnet_models::source`, one
+//! `SourceStream` per track), so a log replayed here and the same samples published
+//! into ghnetd get the same answers: rows in file order, one history per value of a
+//! `track` column (all rows share one without it), time from `t_s` (seconds) or
+//! `timestamp_ns`. A row whose time is earlier than the previous row's of its track is
+//! `invalid` and clears the history; a time step longer than the model's gap limit
+//! clears it too. Without a time column rows are taken as one second apart. A row whose
+//! time does not parse is `invalid`. Per-epoch models ignore all of this and run
+//! through the batch path.
 //!
 //! # Malformed input
 //!
@@ -31,6 +35,7 @@
 //! | a row with fewer or more fields than the header | `invalid`; padded with empty fields or cut to the header's width, so every output row lines up with the output header |
 //! | non-numeric, empty, `NaN`, `inf`, non-UTF-8 velocity fields | `invalid` |
 //! | a velocity over the policy's `max_speed` (100 m/s) | `invalid` |
+//! | a time earlier than the previous row's of the track (stateful models) | `invalid`; the track's history is cleared |
 //! | `speed_acc` non-numeric, empty, NaN, infinite or negative | unknown accuracy, answered with the network's σ (logs often write -1 for "not available"; the live wire has NaN for that and ghnetd rejects a negative one) |
 //! | a huge line (megabytes in one field) | answered like any row (`invalid` if it is a velocity field); memory grows with the longest row only |
 //! | an unterminated quote | the field runs to the end of the file: one more (likely `invalid`) row |
@@ -40,8 +45,8 @@ use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::sync::Arc;
 
-use ghnet_models::model::{Prediction, Predictor, Status};
-use ghnet_models::{Epoch, History, Model, StreamPredictor};
+use ghnet_models::{Model, Runner, Sample, SourceStream, StatusPolicy};
+use ghnet_models::{Prediction, Predictor, Status};
 
 /// Rows per block: large enough for the batch path, small enough to stay in cache.
 const BLOCK: usize = 1024;
@@ -109,8 +114,10 @@ impl Rows {
     fn push(&mut self, r: &csv::ByteRecord, c: &Columns, row: u64) {
         self.v_north.push(parse_field(r.get(c.v_north)));
         self.v_east.push(parse_field(r.get(c.v_east)));
-        self.speed_acc
-            .push(c.speed_acc.map_or(f32::NAN, |i| parse_field(r.get(i))));
+        // Logs often write -1 for "not available": unknown, as NaN is on the wire.
+        let acc = c.speed_acc.map_or(f32::NAN, |i| parse_field(r.get(i)));
+        let known = acc.is_finite() && acc >= 0.0;
+        self.speed_acc.push(if known { acc } else { f32::NAN });
         self.t_s.push(match (c.t_s, c.timestamp_ns) {
             (Some(i), _) => parse_time(r.get(i), 1.0),
             (None, Some(i)) => parse_time(r.get(i), 1e-9),
@@ -133,20 +140,20 @@ impl Answer for Predictor {
     }
 }
 
-/// Stateful models (temporal, `kf`): one history per `track` value, with the same rules
-/// as ghnetd (gap over the model's limit, time backwards).
+/// Stateful models (temporal, `kf`): one [`SourceStream`] per `track` value, the rules
+/// ghnetd applies to a source (time backwards, gap over the model's limit).
 #[derive(Debug)]
 pub struct Streams {
-    sp: StreamPredictor,
-    histories: HashMap<u64, History>,
+    runner: Runner,
+    tracks: HashMap<u64, SourceStream>,
 }
 
 impl Streams {
     /// Answer with `model`.
     pub fn new(model: Arc<Model>) -> Self {
         Self {
-            sp: StreamPredictor::new(model),
-            histories: HashMap::new(),
+            runner: Runner::new(model, StatusPolicy::default(), None),
+            tracks: HashMap::new(),
         }
     }
 }
@@ -154,20 +161,22 @@ impl Streams {
 impl Answer for Streams {
     fn answer(&mut self, rows: &Rows, out: &mut [Prediction]) {
         for (i, o) in out.iter_mut().enumerate() {
-            let sp = &self.sp;
-            let h = self
-                .histories
+            let runner = &self.runner;
+            let track = self
+                .tracks
                 .entry(rows.track[i])
-                .or_insert_with(|| sp.history());
-            *o = self.sp.predict(
-                h,
-                &Epoch {
-                    t_s: rows.t_s[i],
-                    v_north: rows.v_north[i],
-                    v_east: rows.v_east[i],
-                    speed_acc: rows.speed_acc[i],
-                },
-            );
+                .or_insert_with(|| runner.stream(None));
+            let sample = Sample {
+                // A log has no sequence numbers: rows of a track follow each other.
+                seq: track.counts().received,
+                t_s: rows.t_s[i],
+                v_north: rows.v_north[i],
+                v_east: rows.v_east[i],
+                v_down: 0.0,
+                speed_acc: rows.speed_acc[i],
+                flagged: false,
+            };
+            *o = self.runner.answer(track, &sample);
         }
     }
 }

@@ -17,9 +17,9 @@ use crate::eval::{self, Estimate, EvalConfig, Report, Truth};
 use crate::sim::{self, RealisticParams, S1Params, Sample, Split};
 use crate::train::{self, Dataset, TrainConfig};
 use ghnet_models::head::Head;
-use ghnet_models::model::{Model, Predictor};
 use ghnet_models::weights::{ModelMeta, FORMAT};
 use ghnet_models::Arch;
+use ghnet_models::{Model, Predictor};
 
 /// Which simulator made a data set, with its parameters and seed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -1,0 +1,208 @@
+//! The per-epoch math of the stateful engines, free of any history: the temporal
+//! network's inputs, the Kalman filter's step, the state after an epoch, the reported
+//! σ. [`crate::stream`] applies them to a source's history one epoch at a time; the
+//! lab's training runs them over whole tracks.
+
+use crate::head::{accuracy_sigma_base, KalmanBase, MAX_STD_DEG};
+use crate::modes::{Step, StepState};
+use crate::weights::ModelKind;
+
+/// Per-epoch inputs of the temporal network (see [`inputs`]).
+pub const INPUTS: usize = crate::weights::TEMPORAL_INPUTS;
+
+/// Speed (m/s) above which an epoch counts as moving for the Kalman filter's clock of
+/// time stopped, when the receiver's accuracy does not demand more.
+pub const MOVING_SPEED: f32 = 0.5;
+
+/// Largest σ in radians (a uniform error on the circle), as a log: the "no heading" σ.
+pub(crate) fn log_sigma_cap() -> f32 {
+    MAX_STD_DEG.to_radians().ln()
+}
+
+/// Whether an epoch counts as moving: over [`MOVING_SPEED`] and over 4 σ of the
+/// receiver's reported noise.
+#[inline]
+pub fn moving(speed: f32, speed_acc: f32) -> bool {
+    speed >= MOVING_SPEED && !(speed_acc.is_finite() && speed < 4.0 * speed_acc)
+}
+
+/// The Kalman step of an epoch for a model of `kind` (temporal or kf) from the
+/// history's state: prior variance (previous σ² plus `q²·dt`; a uniform error without a
+/// previous heading) and measurement variance `(σ_v/ŝ)²`.
+pub fn kalman_base(
+    kind: &ModelKind,
+    state: &StepState,
+    v_north: f32,
+    v_east: f32,
+    dt: f32,
+) -> KalmanBase {
+    let (q, sv) = match *kind {
+        ModelKind::Temporal {
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+            ..
+        }
+        | ModelKind::Kf {
+            q_deg_per_sqrt_s,
+            sigma_v_mps,
+            ..
+        } => (q_deg_per_sqrt_s.to_radians(), sigma_v_mps),
+        ModelKind::Epoch => (0.0, f32::NAN),
+    };
+    let cap = MAX_STD_DEG.to_radians();
+    let r = accuracy_sigma_base(v_north, v_east, sv).unwrap_or(cap);
+    let p = if state.has_prior {
+        crate::modes::random_walk_variance(state.log_sigma, q, dt)
+    } else {
+        cap * cap
+    };
+    KalmanBase { p, r2: r * r }
+}
+
+/// The temporal network's per-epoch inputs, all O(1), from the state before the epoch
+/// (`prev`), the state after the mode filter's rules (`st`) and the prepared `step`:
+/// the course relative to the step's prior `(cos, sin)`; log and linear speed; the log
+/// sAcc and whether sAcc is known; the logs of the prior σ, the measurement σ, dt, the
+/// time stopped and the time in the current mode; the Kalman gain; the rule's mode and
+/// the previous mode; whether the vehicle is a car, the epoch moves, the glitch gate
+/// fired, the step only holds (before the first motion); the log receiver-noise
+/// estimate; and the log acceleration from the last used velocity. Relative angles make
+/// the network rotation-invariant.
+pub fn inputs(
+    prev: &StepState,
+    st: &StepState,
+    step: &Step,
+    v_north: f32,
+    v_east: f32,
+    speed_acc: f32,
+    dt: f32,
+) -> [f32; INPUTS] {
+    let speed = step.speed;
+    let (s, c) = (step.course - step.prior).sin_cos();
+    let cap = log_sigma_cap();
+    // Clamped both ways: a receiver may claim any finite accuracy (f32::MAX seeds the
+    // noise estimate), and an infinite input would make every output NaN.
+    let log = |v: f32| 0.5 * v.clamp(1e-12, 1e12).ln();
+    let flag = |b: bool| if b { 1.0 } else { 0.0 };
+    let accel = if prev.prev_v[0].is_finite() && dt > 0.0 {
+        (v_north - prev.prev_v[0]).hypot(v_east - prev.prev_v[1]) / dt
+    } else {
+        0.0
+    };
+    [
+        c,
+        s,
+        0.5 * (speed + 0.02).ln(),
+        speed.min(40.0) / 10.0,
+        if speed_acc.is_finite() {
+            log(speed_acc * speed_acc)
+        } else {
+            0.0
+        },
+        flag(speed_acc.is_finite()),
+        log(step.p).min(cap),
+        log(step.r2).min(cap),
+        step.k,
+        0.5 * dt.clamp(0.01, 1000.0).ln(),
+        0.5 * prev.t_still.min(1e4).ln_1p(),
+        0.5 * prev.t_mode.min(1e4).ln_1p(),
+        flag(step.rule_reverse),
+        flag(prev.reverse),
+        flag(st.vehicle.car),
+        flag(step.moving),
+        flag(step.glitch),
+        flag(step.hold),
+        log(st.vehicle.noise * st.vehicle.noise),
+        0.5 * accel.min(1e3).ln_1p(),
+    ]
+}
+
+/// The state after an epoch of the Kalman filter (or a per-epoch model) answered with
+/// heading `psi` and raw `log_sigma`.
+pub fn advance(
+    state: &StepState,
+    v_north: f32,
+    v_east: f32,
+    speed_acc: f32,
+    dt: f32,
+    psi: f32,
+    log_sigma: f32,
+) -> StepState {
+    let mv = moving(v_north.hypot(v_east), speed_acc);
+    StepState {
+        psi: crate::head::wrap_rad(psi),
+        log_sigma,
+        has_prior: true,
+        t_still: if mv { 0.0 } else { state.t_still + dt },
+        ..*state
+    }
+}
+
+/// The reported σ (degrees) of a temporal step: the filter's `log σ` plus the
+/// network's correction `y2`, through the calibration map of the vehicle's class and
+/// state; the uniform σ while the step only holds (before the first motion, as `kf`
+/// answers). A moving car's σ leaves `y2` out when the maps say so
+/// ([`crate::modes::SigmaMaps::moving_without_y2`]): the filter's σ follows the
+/// receiver's noise, which `y2` had averaged away.
+///
+/// A standing car's heading cannot change, so the σ of a held heading is the one it
+/// stopped with, growing with time (`q_still`): the filter's, corrected by the
+/// network's `y2` of the last moving epoch (held in the state), not by each standing
+/// epoch's (trained on noise it cannot see through, it would only make σ jitter).
+/// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
+/// A car moving at speed then gains the turn term ([`crate::modes::SigmaMaps::with_turn`]).
+/// A moving epoch's σ is at least the course scatter the source has shown at speed
+/// over the speed ([`crate::modes::SigmaMaps::scatter_k`]) when that scatter exceeds
+/// the velocity noise the filter assumes (a receiver without sAcc, whose noise the
+/// filter can only guess) or [`crate::modes::SCATTER_RATIO_ACC`] times it (a
+/// receiver whose sAcc understates its noise by that much).
+///
+/// A misread direction is not added as a variance: it is a 180° jump, not a spread,
+/// and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior) swamped the
+/// filter's σ so that the map could no longer tell a good epoch from a poor one; the
+/// calibration map's tails cover misreads instead.
+pub fn reported_sigma(
+    step: &Step,
+    log_sigma: f32,
+    y2: f32,
+    st: &StepState,
+    maps: &crate::modes::SigmaMaps,
+) -> f32 {
+    if step.hold {
+        return MAX_STD_DEG;
+    }
+    // Moved by this step: a glitch the gate ignored is not motion (a car stays standing).
+    let moved = st.moving_now();
+    let y2 = if moved && st.vehicle.car && maps.moving_without_y2 {
+        0.0
+    } else if moved || !st.vehicle.car {
+        y2
+    } else {
+        st.held_y2
+    };
+    let s = (log_sigma + y2)
+        .clamp(crate::head::LOG_SIGMA_MIN, crate::head::LOG_SIGMA_MAX)
+        .exp();
+    let car = st.vehicle.car;
+    let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
+    let sigma = maps.with_turn(car, moved, step.speed, mapped, st.yaw);
+    let scatter = st.vehicle.scatter;
+    // Only a receiver noisier than the filter takes it to be: where the scatter is
+    // within the σ_v in use, the maps (fitted on such receivers) already know it.
+    let ratio = if step.has_acc {
+        crate::modes::SCATTER_RATIO_ACC
+    } else {
+        1.0
+    };
+    if moved
+        && maps.scatter_k > 0.0
+        && scatter.is_finite()
+        && step.speed > 0.0
+        && scatter.sqrt() > ratio * step.sigma_v
+    {
+        let floor = (maps.scatter_k * scatter.sqrt() / step.speed).to_degrees();
+        sigma.max(floor.min(MAX_STD_DEG))
+    } else {
+        sigma
+    }
+}
