@@ -7,6 +7,7 @@ use super::state::StepState;
 use super::vehicle::Vehicle;
 use crate::head::MAX_STD_DEG;
 
+#[inline]
 pub(super) fn cap2() -> f32 {
     let c = MAX_STD_DEG.to_radians();
     c * c
@@ -14,6 +15,7 @@ pub(super) fn cap2() -> f32 {
 
 /// Speed corrected for noise (`√(|v|² − 2σ²)`, 0 inside the noise) and the course's σ
 /// `σ/ŝ` capped at the uniform σ.
+#[inline]
 pub(super) fn measurement(speed: f32, sigma: f32) -> (f32, f32) {
     let cap = MAX_STD_DEG.to_radians();
     let s2 = speed * speed - 2.0 * sigma * sigma;
@@ -26,6 +28,7 @@ pub(super) fn measurement(speed: f32, sigma: f32) -> (f32, f32) {
 }
 
 /// Track the low quantile of slow speeds (a stopped receiver's noise).
+#[inline]
 pub(super) fn update_noise(mp: &ModeParams, v: &mut Vehicle, speed: f32, acc: f32) {
     if !v.noise.is_finite() {
         let init = if acc.is_finite() { acc } else { 0.1 };
@@ -64,6 +67,7 @@ fn platform_sigma_v(mp: &ModeParams, acc: f32) -> f32 {
 /// a platform would measure it, by the receiver's own accuracy. (The held heading is
 /// not forgotten: cars that turn as they pull away are released off its axis too, and
 /// lost more than they gained.)
+#[inline]
 pub(super) fn measured(
     mp: &ModeParams,
     st: &StepState,
@@ -83,6 +87,7 @@ pub(super) fn measured(
 
 /// The prior variance (radians²) of a standing step from `st` after `dt`: the class's
 /// random walk (a car's is small: cars do not turn in place).
+#[inline]
 pub(super) fn still_variance(mp: &ModeParams, st: &StepState, dt: f32) -> f32 {
     let q = if st.vehicle.car {
         mp.q_still_deg
@@ -95,12 +100,14 @@ pub(super) fn still_variance(mp: &ModeParams, st: &StepState, dt: f32) -> f32 {
 
 /// The prior variance (radians², capped at the uniform one) of a heading with `log σ`
 /// `log_sigma` after a random walk of `q` rad/√s for `dt`: the mode filter's and `kf`'s.
+#[inline]
 pub(crate) fn random_walk_variance(log_sigma: f32, q: f32, dt: f32) -> f32 {
     ((2.0 * log_sigma).exp() + q * q * dt).min(cap2())
 }
 
 /// `p_still` plus the steering noise of the distance driven at speed `shat` over `dt`
 /// (path curvature `k_max` when slow, lateral acceleration `a_lat` at speed).
+#[inline]
 pub(super) fn driving_variance(mp: &ModeParams, p_still: f32, shat: f32, dt: f32) -> f32 {
     let w = mp.k_max * shat.min(mp.a_lat / (mp.k_max * shat.max(1e-3)));
     (p_still + w * w * dt).min(cap2())

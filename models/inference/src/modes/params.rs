@@ -103,6 +103,7 @@ impl Default for ModeParams {
 impl ModeParams {
     /// Rayleigh quantile factor: the `noise_quantile` quantile of a stopped receiver's
     /// speed is this times its per-axis σ.
+    #[inline]
     pub(super) fn quantile_factor(&self) -> f32 {
         (-2.0 * (1.0 - self.noise_quantile).ln()).sqrt()
     }

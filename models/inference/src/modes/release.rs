@@ -38,6 +38,7 @@ pub const RELEASE_COURSE_DEG: f32 = 30.0;
 impl StepState {
     /// Whether the release rule ends a stand on this epoch: a second of plain motion
     /// on a steady course ([`RELEASE_S`], and at least two epochs).
+    #[inline]
     pub fn released(&self) -> bool {
         self.t_motion >= RELEASE_S && self.n_motion >= RELEASE_EPOCHS
     }
@@ -55,6 +56,7 @@ impl StepState {
 /// not repeat; a departure does, one epoch later), and for `axis_secs` only along the
 /// axis of a sure held heading (a car cannot leave a stand sideways; most glitches
 /// point elsewhere).
+#[inline]
 #[allow(clippy::too_many_arguments)] // one epoch's numbers
 pub(super) fn glitch(
     mp: &ModeParams,
@@ -124,6 +126,7 @@ fn off_axis_of_held(mp: &ModeParams, st: &StepState, vn: f32, ve: f32, p: f32, r
 
 /// The release rule's clock ([`StepState::t_motion`]): runs while epochs are plain
 /// motion (at least [`RELEASE_SPEED`] and `3·sAcc`) on a steady course.
+#[inline]
 pub(super) fn track_motion(
     mp: &ModeParams,
     st: &mut StepState,

@@ -38,6 +38,7 @@ pub const SCATTER_TAU_S: f32 = 30.0;
 /// between: `t_still` and `prev_speed` say so) and not in reverse.
 ///
 /// [`Vehicle::scatter`]: crate::modes::Vehicle::scatter
+#[inline]
 pub(super) fn update_scatter(st: &mut StepState, vn: f32, ve: f32, dt: f32) {
     let speed = vn.hypot(ve);
     if !(st.has_prior

@@ -115,6 +115,7 @@ impl StepState {
     /// definition that picks the moving σ maps, records what a stop will hold
     /// (`held_y2`, `held_clean`) and sorts epochs when the maps are fitted. A glitch
     /// leaves it as it was.
+    #[inline]
     pub fn moving_now(&self) -> bool {
         self.t_still == 0.0
     }
