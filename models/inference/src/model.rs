@@ -40,8 +40,8 @@ fn resolve(name: &str) -> &str {
 }
 
 /// Name of the default model: the built-in one most accurate on the shared real drive
-/// and on held-out simulated cars (models/README.md: `ghnet-temporal` 2.94° MAE on the
-/// real drive, `kf` 5.53°, atan2 39.79°). Stateful, so run it with a
+/// and on held-out simulated cars (its figures against atan2 and `kf`:
+/// models/reports/car-nagoya.md and ghnet-temporal.md). Stateful, so run it with a
 /// [`crate::StreamPredictor`] and one [`crate::History`] per source, as ghnetd does.
 pub const DEFAULT_MODEL: &str = "ghnet-temporal";
 

@@ -24,10 +24,9 @@
 //! * **A standing car stays put.** Its epochs within the noise (under 3σ) feed nothing
 //!   (no gain, no steering noise); it leaves rest only on a velocity reachable from rest since
 //!   the last used epoch, confirmed by the next epoch, and (for `axis_secs`) along the
-//!   axis of a sure held heading. On the simulator's validation cars this took the
-//!   standing epochs' error from a median of 4.1° and a 90th percentile of 43° to
-//!   2.75° and 12° (shipped model): most of it had been glitches and noise turning a
-//!   parked car.
+//!   axis of a sure held heading. On the simulator's validation cars this cut the
+//!   standing epochs' error, median and tail: most of it had been glitches and noise
+//!   turning a parked car (the stopped rows of models/reports/ghnet-temporal.md).
 //!
 //! Until the history's first epoch that the tuned `kf` would use (its measurement gate
 //! `σ_v/ŝ` below the uniform σ), the model answers exactly what `kf` answers: the first

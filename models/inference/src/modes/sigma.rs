@@ -84,8 +84,9 @@ pub struct SigmaMaps {
     /// Seconds of yaw rate added in quadrature to the mapped σ of a car moving at
     /// [`TURN_SPEED`] or faster: `hypot(σ, yaw_s·|ω|)`, then through `car_turn`.
     /// Without it σ knows noise and speed but not turning, and averages straights with
-    /// turns: on held-out simulated cars at 2 m/s and faster that left 75% of errors
-    /// within 1σ under 0.5°/s and 40% at 10°/s and more (a lagging receiver's course
+    /// turns: on held-out simulated cars at 2 m/s and faster that left straights
+    /// over-covered and fast turns far under (the turn-rate tables of
+    /// models/reports/ghnet-temporal.md show the result; a lagging receiver's course
     /// trails the heading by ω·τ, τ unknown; a lever arm adds its own offset in a
     /// turn). 0 (older files) leaves σ as it was.
     pub yaw_s: f32,
@@ -115,8 +116,7 @@ pub struct SigmaMaps {
 
 /// A receiver is clean when the noise the filter measured at rest is under this share
 /// of the speed accuracy it reports: its held headings lack the heavy tail of
-/// receivers noisier than they say (validation standing cars: 68th percentile 1.9°
-/// against 5.8°).
+/// receivers noisier than they say (measured on the recipe's validation standing cars).
 pub const CLEAN_NOISE_RATIO: f32 = 0.5;
 
 /// Whether the receiver behind `noise` (measured, m/s) and `acc` (reported sAcc, m/s,
