@@ -3,10 +3,12 @@
 //!
 //! # Layout
 //!
-//! - [`config`] — [`Config`] (TOML sections `ipc`, `sources`, `model`, `history`,
-//!   `stats`, `zenoh`) and
-//!   [`config::Cli`] (clap flags overriding it); validation with one-line errors that
-//!   name the key.
+//! - `config` (private) — [`Config`] (TOML sections `ipc`, `sources`, `model`,
+//!   `history`, `stats`, `zenoh`): each key's type, doc, flag and default on one field,
+//!   read by serde from the file and by clap from the flags; validation with one-line
+//!   errors that name the key. `layering` (private): TOML parse errors and flags laid
+//!   over the file; `host` (private): the host checks validation makes (root
+//!   directory ownership, `/dev/shm` size).
 //! - [`answer`] — per-sample logic without IPC: input checks, sequence and timestamp
 //!   bookkeeping ([`Counters`]), the model call (one sample, or many, possibly of
 //!   several sources, with one batched call: [`answer::Batch`]), mapping to the wire
@@ -90,9 +92,11 @@ use std::sync::Arc;
 use serde::Serialize;
 
 pub mod answer;
-pub mod config;
+mod config;
 mod discovery;
 pub mod history;
+mod host;
+mod layering;
 mod lock;
 mod output;
 mod pressure;
@@ -103,7 +107,10 @@ mod source;
 mod test_model;
 
 pub use answer::Counters;
-pub use config::Config;
+pub use config::{
+    Config, HistorySection, IpcSection, ModelSection, Platforms, SourcesSection, StatsSection,
+    ZenohSection,
+};
 
 /// Set once to stop [`run`]. Cheap to clone; setting it is async-signal-safe (a
 /// single atomic store), so a signal handler may call [`request`](Self::request).
