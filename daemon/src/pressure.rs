@@ -13,7 +13,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use ghnet_client::IpcConfig;
+use ghnet_client::{IpcConfig, OpenError, Setting};
 use tracing::{info, warn};
 
 use crate::config::Config;
@@ -127,16 +127,17 @@ impl Budget {
         }
     }
 
-    /// The reason to report for a source that failed to open: the error, preceded
-    /// by the resource that is short if one is (iceoryx2 reports `EMFILE` as an
-    /// opaque internal failure).
+    /// The reason to report for a source that failed to open: the error (a limit
+    /// named by its `ipc.*` key), preceded by the resource that is short if one is
+    /// (iceoryx2 reports `EMFILE` as an opaque internal failure).
     pub(crate) fn explain(&self, e: anyhow::Error) -> String {
+        let e = in_config_keys(&e);
         match self.shortage() {
-            Some(short) => format!("{short}: {e:#}"),
+            Some(short) => format!("{short}: {e}"),
             None if open_fds() + 2 * self.fds_per_source + FDS_RESERVE > self.fd_limit => {
-                format!("file descriptors (limit {}): {e:#}", self.fd_limit)
+                format!("file descriptors (limit {}): {e}", self.fd_limit)
             }
-            None => format!("{e:#}"),
+            None => e,
         }
     }
 
@@ -157,6 +158,29 @@ impl Budget {
         self.learned = true;
         self.fds_per_source = self.fds_per_source.max(now.fds.saturating_sub(before.fds));
         self.shm_per_source = self.shm_per_source.max(now.shm.saturating_sub(before.shm));
+    }
+}
+
+/// `e` as `{e:#}` prints it, with a client limit error naming ghnetd's `ipc.*` key to
+/// raise instead of the client's `ServiceSettings` field: the operator sets the key.
+fn in_config_keys(e: &anyhow::Error) -> String {
+    let causes: Vec<String> = e
+        .chain()
+        .map(|cause| match cause.downcast_ref::<OpenError>() {
+            Some(open) => open.naming(|s| ipc_key(s).to_owned()),
+            None => cause.to_string(),
+        })
+        .collect();
+    causes.join(": ")
+}
+
+/// ghnetd's key for a client [`Setting`]: the `[ipc]` key that sets it.
+fn ipc_key(setting: Setting) -> &'static str {
+    match setting {
+        Setting::MaxPublishers => "ipc.max_publishers",
+        Setting::MaxSubscribers => "ipc.max_subscribers",
+        Setting::MaxNodes => "ipc.max_nodes",
+        Setting::SubscriberBufferSize => "ipc.subscriber_buffer",
     }
 }
 
