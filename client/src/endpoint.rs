@@ -16,18 +16,17 @@
 use std::cell::Cell;
 use std::time::{Duration, Instant};
 
-use iceoryx2::port::listener::{Listener, ListenerWaitError};
-use iceoryx2::port::notifier::{Notifier, NotifierNotifyError};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
-use iceoryx2::port::{LoanError, ReceiveError};
 use iceoryx2::prelude::*;
 
+use crate::error::{BoxError, OpenError, RecvError, SendError};
+use crate::limits;
 use crate::names::{validate_source_name, IpcConfig, NameError};
 use crate::settings::{open_event, open_pubsub, EventFactory, Message, PubSubFactory};
-use crate::{HeadingEstimate, VelocitySample};
-
-type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
+use crate::wire::{HeadingEstimate, VelocitySample};
 
 /// A GNSS source's side of `<prefix>/<source>/velocity`.
 ///
@@ -81,146 +80,6 @@ pub type HeadingPublisher = Sender<HeadingEstimate>;
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub type HeadingSubscriber = Receiver<HeadingEstimate>;
-
-/// Opening a [`Sender`] or [`Receiver`] failed.
-#[derive(Debug, thiserror::Error)]
-pub enum OpenError {
-    /// The source name or prefix breaks the naming rules.
-    #[error(transparent)]
-    Name(#[from] NameError),
-    /// iceoryx2 could not create a node (permissions on the root path, `/dev/shm`).
-    #[error("cannot create iceoryx2 node")]
-    Node(#[source] iceoryx2::node::NodeCreationFailure),
-    /// The service exists with incompatible settings or type (another iceoryx2
-    /// version, another payload type, smaller limits), or could not be created.
-    #[error("cannot open or create {pattern} service `{service}`")]
-    Service {
-        /// Full service name.
-        service: String,
-        /// `publish-subscribe` or `event`.
-        pattern: &'static str,
-        /// The iceoryx2 error.
-        #[source]
-        source: BoxError,
-    },
-    /// A service limit is reached: all publisher, subscriber or node slots of the
-    /// service are in use. The message names the ghnetd config key to raise
-    /// (`ipc.max_publishers`, `ipc.max_subscribers`, `ipc.max_nodes`,
-    /// `ipc.subscriber_buffer`; in Rust clients the same fields of
-    /// [`ServiceSettings`](crate::ServiceSettings) via [`IpcConfig::with_settings`]).
-    /// Every process must use the same limits.
-    #[error("service `{service}`: {problem} ({key})")]
-    Limit {
-        /// Full service name.
-        service: String,
-        /// What ran out, e.g. `all 8 subscriber slots in use`.
-        problem: String,
-        /// The setting to raise, e.g. `ipc.max_subscribers`.
-        key: &'static str,
-    },
-    /// The service exists with smaller limits than this process asks for: another
-    /// process created it with other settings. Names *every* setting that is smaller,
-    /// so that one change fixes them all; the fix is the same values in every process
-    /// of the deployment.
-    #[error(
-        "service `{service}`: exists with smaller limits than this process asks for \
-         (every process must use the same): {}",
-        SettingMismatch::list(.settings)
-    )]
-    Mismatch {
-        /// Full service name.
-        service: String,
-        /// The settings below what this process asks for, at least one.
-        settings: Vec<SettingMismatch>,
-    },
-    /// The port could not be created for another reason (out of memory, resources of
-    /// the service missing or inaccessible).
-    #[error("cannot create {port} on service `{service}`")]
-    Port {
-        /// Full service name.
-        service: String,
-        /// `publisher`, `subscriber`, `notifier` or `listener`.
-        port: &'static str,
-        /// The iceoryx2 error.
-        #[source]
-        source: BoxError,
-    },
-}
-
-/// One setting of an existing service below what this process asks for (see
-/// [`OpenError::Mismatch`]).
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct SettingMismatch {
-    /// The setting, named by its ghnetd config key, e.g. `ipc.max_subscribers` (Rust
-    /// clients: the same field of [`ServiceSettings`](crate::ServiceSettings)).
-    pub key: &'static str,
-    /// What it limits, e.g. `subscriber slots`.
-    pub what: &'static str,
-    /// What this process asks for.
-    pub asked: usize,
-    /// What the service was created with.
-    pub created: usize,
-}
-
-impl std::fmt::Display for SettingMismatch {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let Self {
-            key,
-            what,
-            asked,
-            created,
-        } = self;
-        write!(
-            f,
-            "fewer {what} than the {asked} asked, created with {created} ({key})"
-        )
-    }
-}
-
-impl SettingMismatch {
-    fn list(settings: &[SettingMismatch]) -> String {
-        let items: Vec<String> = settings.iter().map(ToString::to_string).collect();
-        items.join("; ")
-    }
-}
-
-/// Sending failed.
-#[derive(Debug, thiserror::Error)]
-pub enum SendError {
-    /// No free sample in the publisher's data segment.
-    #[error("cannot loan a sample")]
-    Loan(#[source] LoanError),
-    /// Delivering the sample to the subscribers failed.
-    #[error("cannot deliver the sample")]
-    Send(#[source] iceoryx2::port::SendError),
-    /// The sample was delivered but the wake-up notification failed.
-    #[error("cannot notify listeners")]
-    Notify(#[source] NotifierNotifyError),
-}
-
-/// Receiving failed.
-#[derive(Debug, thiserror::Error)]
-pub enum RecvError {
-    /// Reading from the publishers' data segments failed.
-    #[error("cannot receive a sample")]
-    Receive(#[source] ReceiveError),
-    /// Waiting on the event service failed.
-    #[error("cannot wait for a notification")]
-    Wait(#[source] ListenerWaitError),
-    /// A signal (e.g. Ctrl-C) interrupted the wait; the caller decides whether to
-    /// retry or stop.
-    #[error("interrupted by a signal")]
-    Interrupted,
-}
-
-impl From<ListenerWaitError> for RecvError {
-    fn from(e: ListenerWaitError) -> Self {
-        match e {
-            ListenerWaitError::InterruptSignal => RecvError::Interrupted,
-            e => RecvError::Wait(e),
-        }
-    }
-}
 
 fn service_name_for<T: Message>(ipc: &IpcConfig, source: &str) -> Result<String, NameError> {
     validate_source_name(source)?;
@@ -289,10 +148,12 @@ impl<T: Message> Pair<T> {
         port: &'static str,
     ) -> impl FnOnce(E) -> OpenError + '_ {
         move |e| {
-            limits::port(self, &e).unwrap_or_else(|| OpenError::Port {
-                service: self.name.clone(),
-                port,
-                source: Box::new(e),
+            limits::port(&self.name, &self.pubsub, &self.event, &e).unwrap_or_else(|| {
+                OpenError::Port {
+                    service: self.name.clone(),
+                    port,
+                    source: Box::new(e),
+                }
             })
         }
     }
@@ -554,193 +415,5 @@ impl<T: Message> Receiver<T> {
             self.last_seq.set(Some(seq));
         }
         Ok(got)
-    }
-}
-
-/// Maps iceoryx2's limit errors to [`OpenError::Limit`] and [`OpenError::Mismatch`],
-/// naming the setting(s) to raise.
-mod limits {
-    use iceoryx2::port::listener::ListenerCreateError;
-    use iceoryx2::port::notifier::NotifierCreateError;
-    use iceoryx2::port::publisher::PublisherCreateError;
-    use iceoryx2::port::subscriber::SubscriberCreateError;
-    use iceoryx2::prelude::*;
-    use iceoryx2::service::builder::event::{EventOpenError, EventOpenOrCreateError};
-    use iceoryx2::service::builder::publish_subscribe::{
-        PublishSubscribeOpenError, PublishSubscribeOpenOrCreateError,
-    };
-    use iceoryx2::service::port_factory::PortFactory;
-
-    use super::{OpenError, Pair, SettingMismatch};
-    use crate::settings::{Message, ServiceSettings};
-
-    const PUBLISHERS: &str = "ipc.max_publishers";
-    const SUBSCRIBERS: &str = "ipc.max_subscribers";
-    const NODES: &str = "ipc.max_nodes";
-    const BUFFER: &str = "ipc.subscriber_buffer";
-
-    fn limit(service: &str, problem: String, key: &'static str) -> Option<OpenError> {
-        Some(OpenError::Limit {
-            service: service.to_owned(),
-            problem,
-            key,
-        })
-    }
-
-    fn nodes_full(service: &ServiceName, s: &ServiceSettings) -> Option<OpenError> {
-        let problem = format!("all node slots in use ({} requested)", s.max_nodes);
-        limit(service.as_str(), problem, NODES)
-    }
-
-    /// iceoryx2 reports only the first setting of an existing service that is below
-    /// the request. Opening both services of the pair without requirements shows
-    /// all of them, so the user fixes every one at once instead of one per attempt.
-    /// `None` if neither service can be inspected (e.g. it went away meanwhile).
-    fn mismatch<T: Message>(
-        node: &Node<ipc::Service>,
-        service: &ServiceName,
-        s: &ServiceSettings,
-    ) -> Option<OpenError> {
-        let mut settings: Vec<SettingMismatch> = Vec::new();
-        let mut note = |key, what, asked, created| {
-            if created < asked && !settings.iter().any(|m| m.key == key) {
-                settings.push(SettingMismatch {
-                    key,
-                    what,
-                    asked,
-                    created,
-                });
-            }
-        };
-        let builder = || node.service_builder(service);
-        if let Ok(pubsub) = builder().publish_subscribe::<T>().open() {
-            let c = pubsub.static_config();
-            note(
-                PUBLISHERS,
-                "publisher slots",
-                s.max_publishers,
-                c.max_publishers(),
-            );
-            note(
-                SUBSCRIBERS,
-                "subscriber slots",
-                s.max_subscribers,
-                c.max_subscribers(),
-            );
-            note(NODES, "node slots", s.max_nodes, c.max_nodes());
-            let buffer = c.subscriber_max_buffer_size();
-            note(
-                BUFFER,
-                "subscriber buffer slots",
-                s.subscriber_buffer_size,
-                buffer,
-            );
-        }
-        if let Ok(event) = builder().event().open() {
-            let c = event.static_config();
-            note(
-                PUBLISHERS,
-                "notifier slots",
-                s.max_notifiers,
-                c.max_notifiers(),
-            );
-            note(
-                SUBSCRIBERS,
-                "listener slots",
-                s.max_listeners,
-                c.max_listeners(),
-            );
-            note(NODES, "node slots", s.max_nodes, c.max_nodes());
-        }
-        (!settings.is_empty()).then(|| OpenError::Mismatch {
-            service: service.as_str().to_owned(),
-            settings,
-        })
-    }
-
-    pub(super) fn pubsub_open<T: Message>(
-        node: &Node<ipc::Service>,
-        service: &ServiceName,
-        s: &ServiceSettings,
-        e: &PublishSubscribeOpenOrCreateError,
-    ) -> Option<OpenError> {
-        use PublishSubscribeOpenError as E;
-        let PublishSubscribeOpenOrCreateError::PublishSubscribeOpenError(e) = e else {
-            return None;
-        };
-        match e {
-            E::ExceedsMaxNumberOfNodes => nodes_full(service, s),
-            E::DoesNotSupportRequestedAmountOfPublishers
-            | E::DoesNotSupportRequestedAmountOfSubscribers
-            | E::DoesNotSupportRequestedAmountOfNodes
-            | E::DoesNotSupportRequestedMinBufferSize => mismatch::<T>(node, service, s),
-            _ => None,
-        }
-    }
-
-    pub(super) fn event_open<T: Message>(
-        node: &Node<ipc::Service>,
-        service: &ServiceName,
-        s: &ServiceSettings,
-        e: &EventOpenOrCreateError,
-    ) -> Option<OpenError> {
-        use EventOpenError as E;
-        let EventOpenOrCreateError::EventOpenError(e) = e else {
-            return None;
-        };
-        match e {
-            E::ExceedsMaxNumberOfNodes => nodes_full(service, s),
-            E::DoesNotSupportRequestedAmountOfNotifiers
-            | E::DoesNotSupportRequestedAmountOfListeners
-            | E::DoesNotSupportRequestedAmountOfNodes => mismatch::<T>(node, service, s),
-            _ => None,
-        }
-    }
-
-    /// `e` is one of the four port creation errors; anything else is not a limit.
-    pub(super) fn port<T: Message, E: std::error::Error + 'static>(
-        pair: &Pair<T>,
-        e: &E,
-    ) -> Option<OpenError> {
-        let any = e as &dyn std::error::Error;
-        let pubsub = pair.pubsub.static_config();
-        let event = pair.event.static_config();
-        let full = |n: usize, what: &str| format!("all {n} {what} slots in use");
-        let name = &pair.name;
-        if let Some(e) = any.downcast_ref::<PublisherCreateError>() {
-            if *e == PublisherCreateError::ExceedsMaxSupportedPublishers {
-                return limit(name, full(pubsub.max_publishers(), "publisher"), PUBLISHERS);
-            }
-        } else if let Some(e) = any.downcast_ref::<SubscriberCreateError>() {
-            match e {
-                SubscriberCreateError::ExceedsMaxSupportedSubscribers => {
-                    return limit(
-                        name,
-                        full(pubsub.max_subscribers(), "subscriber"),
-                        SUBSCRIBERS,
-                    )
-                }
-                SubscriberCreateError::BufferSizeExceedsMaxSupportedBufferSizeOfService => {
-                    return limit(
-                        name,
-                        format!(
-                            "subscriber buffer larger than the service's {}",
-                            pubsub.subscriber_max_buffer_size()
-                        ),
-                        BUFFER,
-                    )
-                }
-                _ => {}
-            }
-        } else if let Some(e) = any.downcast_ref::<NotifierCreateError>() {
-            if *e == NotifierCreateError::ExceedsMaxSupportedNotifiers {
-                return limit(name, full(event.max_notifiers(), "notifier"), PUBLISHERS);
-            }
-        } else if let Some(e) = any.downcast_ref::<ListenerCreateError>() {
-            if *e == ListenerCreateError::ExceedsMaxSupportedListeners {
-                return limit(name, full(event.max_listeners(), "listener"), SUBSCRIBERS);
-            }
-        }
-        None
     }
 }

@@ -19,13 +19,18 @@
 //!   sleep instead of polling. Aliases: [`VelocityPublisher`], [`HeadingSubscriber`]
 //!   (the two a user needs) and [`VelocitySubscriber`], [`HeadingPublisher`] (the
 //!   daemon's side).
+//! - [`error`] — what opening, sending and receiving can fail with; a limit error
+//!   names the [`ServiceSettings`] field to raise ([`Setting`]). `limits` (private)
+//!   turns iceoryx2's limit errors into those.
 //! - `codec` (feature `zenoh`) — `encode_zenoh`/`decode_zenoh`: a [`HeadingEstimate`]
 //!   as the Zenoh payload (bincode 2, fixed-width little-endian: the same 64 bytes as
 //!   the iceoryx2 layout); bad bytes are a `DecodeError`, never a panic.
 //! - `remote` (feature `zenoh`) — `ZenohHeadingSubscriber`, the `@ghnetd` key names
 //!   (presence, stats, model) and `peer_config`, the loopback-only Zenoh config.
-//! - [`signals`] — [`termination_requested`]: Ctrl-C handling for programs using the
-//!   helpers (iceoryx2 captures SIGINT/SIGTERM once it is in use).
+//! - [`signals`] — [`termination_requested`] and [`StopLatch`]: Ctrl-C handling for
+//!   programs using the helpers (iceoryx2 captures SIGINT/SIGTERM once it is in use).
+//! - `cli` (feature `cli`) — `IpcArgs`, the `--service-prefix` and iceoryx2 override
+//!   flags every bridge flattens into its command line.
 //! - [`waitset`] — [`attach_listeners`] and [`wait_for_listeners`]: which of many receivers woke a `WaitSet`,
 //!   by position, for a thread that serves them all.
 //! - `testing` (feature `testing`) — `testing::TestNamespace`, a private iceoryx2
@@ -38,6 +43,7 @@
 //!   it the crate is iceoryx2 only: a publisher or consumer on shared memory builds
 //!   without Zenoh and bincode (`default-features = false`).
 //! - `testing`: the `testing` module, for tests of this crate and of its users.
+//! - `cli`: the `cli` module (adds clap).
 //!
 //! # Protocol in one paragraph
 //!
@@ -64,9 +70,13 @@
 
 #![warn(missing_docs)]
 
+#[cfg(feature = "cli")]
+pub mod cli;
 #[cfg(feature = "zenoh")]
 pub mod codec;
 pub mod endpoint;
+pub mod error;
+mod limits;
 pub mod names;
 #[cfg(feature = "zenoh")]
 pub mod remote;
@@ -80,9 +90,9 @@ pub mod wire;
 #[cfg(feature = "zenoh")]
 pub use codec::{decode_zenoh, encode_zenoh, DecodeError, ZENOH_HEADING_LEN};
 pub use endpoint::{
-    HeadingPublisher, HeadingSubscriber, OpenError, Receiver, RecvError, SendError, Sender,
-    SettingMismatch, VelocityPublisher, VelocitySubscriber,
+    HeadingPublisher, HeadingSubscriber, Receiver, Sender, VelocityPublisher, VelocitySubscriber,
 };
+pub use error::{OpenError, RecvError, SendError, Setting, SettingMismatch};
 pub use names::{
     validate_source_name, IpcConfig, NameError, DEFAULT_PREFIX, EXPIRED_CONNECTION_BUFFER,
 };
@@ -91,7 +101,7 @@ pub use remote::{
     peer_config, ZenohHeadingSubscriber, ZenohOpenError, DEFAULT_ZENOH_PORT, ZENOH_TX_QUEUE,
 };
 pub use settings::{Message, ServiceSettings, SERVICE_SETTINGS};
-pub use signals::termination_requested;
+pub use signals::{termination_requested, StopLatch};
 pub use waitset::{attach_listeners, wait_for_listeners};
 pub use wire::{flags, CodecError, HeadingEstimate, HeadingStatus, VelocitySample, MODEL_NAME_LEN};
 

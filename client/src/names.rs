@@ -18,9 +18,11 @@
 
 use std::path::PathBuf;
 
-use crate::settings::{ServiceSettings, SERVICE_SETTINGS};
 use iceoryx2::config::Config;
 use iceoryx2::prelude::*;
+
+use crate::settings::{Message, ServiceSettings, SERVICE_SETTINGS};
+use crate::wire::{HeadingEstimate, VelocitySample};
 
 /// The default service prefix.
 pub const DEFAULT_PREFIX: &str = "ghnet";
@@ -29,10 +31,11 @@ pub const MAX_SOURCE_LEN: usize = 64;
 /// Longest accepted service prefix in bytes (keeps full names far below iceoryx2's
 /// 255-byte service-name limit).
 pub const MAX_PREFIX_LEN: usize = 128;
-/// Last level of the input service name.
-pub const VELOCITY_SUFFIX: &str = "velocity";
+/// Last level of the input service name (the payload type says which service it
+/// travels on: [`Message::SERVICE_SUFFIX`]).
+pub const VELOCITY_SUFFIX: &str = VelocitySample::SERVICE_SUFFIX;
 /// Last level of the output service name and Zenoh key.
-pub const HEADING_SUFFIX: &str = "heading";
+pub const HEADING_SUFFIX: &str = HeadingEstimate::SERVICE_SUFFIX;
 
 /// A source name or prefix that breaks the naming rules in the [module docs](self).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

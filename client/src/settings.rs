@@ -1,8 +1,7 @@
 //! The iceoryx2 service settings of every ghnet service: the defaults are chosen here
 //! and only here ([`SERVICE_SETTINGS`]); a deployment that needs more slots raises
-//! them with [`IpcConfig::with_settings`](crate::IpcConfig::with_settings) (ghnetd:
-//! `ipc.max_publishers`, `ipc.max_subscribers`, `ipc.max_nodes`,
-//! `ipc.subscriber_buffer`).
+//! them with [`IpcConfig::with_settings`](crate::IpcConfig::with_settings) (a
+//! program may expose them under names of its own, e.g. ghnetd's config keys).
 //!
 //! iceoryx2 fixes a service's limits when the service is *created*; whoever opens it
 //! later may ask for at most those limits (asking for more fails with e.g.
@@ -18,6 +17,8 @@ use std::fmt::Debug;
 
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::{event, publish_subscribe};
+
+use crate::wire::{HeadingEstimate, VelocitySample};
 
 /// Limits and buffering of a ghnet service pair (publish-subscribe + event of the same
 /// name). The same values apply to `…/velocity` and `…/heading`.
@@ -71,14 +72,14 @@ pub trait Message: Debug + Copy + ZeroCopySend + sealed::Sealed + 'static {
     fn seq(&self) -> u64;
 }
 
-impl Message for crate::VelocitySample {
-    const SERVICE_SUFFIX: &'static str = crate::names::VELOCITY_SUFFIX;
+impl Message for VelocitySample {
+    const SERVICE_SUFFIX: &'static str = "velocity";
     fn seq(&self) -> u64 {
         self.seq
     }
 }
-impl Message for crate::HeadingEstimate {
-    const SERVICE_SUFFIX: &'static str = crate::names::HEADING_SUFFIX;
+impl Message for HeadingEstimate {
+    const SERVICE_SUFFIX: &'static str = "heading";
     fn seq(&self) -> u64 {
         self.seq
     }
@@ -91,9 +92,8 @@ impl Default for ServiceSettings {
 }
 
 impl ServiceSettings {
-    /// [`SERVICE_SETTINGS`] with the four limits a deployment may raise (ghnetd's
-    /// `ipc.max_publishers`, `ipc.max_subscribers`, `ipc.max_nodes`,
-    /// `ipc.subscriber_buffer`). Notifier and listener slots follow publishers and
+    /// [`SERVICE_SETTINGS`] with the four limits a deployment may raise (the
+    /// [`Setting`](crate::Setting)s). Notifier and listener slots follow publishers and
     /// subscribers one to one, since every [`Sender`](crate::Sender) holds one
     /// notifier and every [`Receiver`](crate::Receiver) one listener.
     pub fn with_limits(
@@ -116,8 +116,8 @@ impl ServiceSettings {
 
 mod sealed {
     pub trait Sealed {}
-    impl Sealed for crate::VelocitySample {}
-    impl Sealed for crate::HeadingEstimate {}
+    impl Sealed for super::VelocitySample {}
+    impl Sealed for super::HeadingEstimate {}
 }
 
 pub(crate) type PubSubFactory<T> = publish_subscribe::PortFactory<ipc::Service, T, ()>;

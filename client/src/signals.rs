@@ -32,3 +32,34 @@
 pub fn termination_requested() -> bool {
     iceoryx2_bb_posix::signal::SignalHandler::termination_requested()
 }
+
+/// A stop request that stays requested: [`termination_requested`] clears the signal
+/// it reads, so a program that asks from several places (its input loop, its output
+/// wait) latches the first answer here and sees `true` everywhere after.
+#[derive(Debug)]
+pub struct StopLatch(std::cell::Cell<bool>);
+
+impl StopLatch {
+    /// Installs iceoryx2's capturing handlers now, before anything blocks (the first
+    /// [`termination_requested`] call does), keeping a signal that already came.
+    pub fn new() -> Self {
+        Self(std::cell::Cell::new(termination_requested()))
+    }
+
+    /// Whether a stop was requested, now or before. `on_first` runs once, when this
+    /// call is the one that sees the signal (e.g. to log it); not for a signal
+    /// latched by [`new`](Self::new).
+    pub fn poll(&self, on_first: impl FnOnce()) -> bool {
+        if !self.0.get() && termination_requested() {
+            on_first();
+            self.0.set(true);
+        }
+        self.0.get()
+    }
+}
+
+impl Default for StopLatch {
+    fn default() -> Self {
+        Self::new()
+    }
+}

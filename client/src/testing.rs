@@ -94,6 +94,17 @@ impl TestNamespace {
         &self.root
     }
 
+    /// The flags that put a ghnet program (ghnetd, a bridge, the Python examples) in
+    /// this namespace: `--iceoryx2-global-prefix PREFIX --iceoryx2-root-path DIR`.
+    pub fn iceoryx2_flags(&self) -> [std::ffi::OsString; 4] {
+        [
+            "--iceoryx2-global-prefix".into(),
+            self.global_prefix.clone().into(),
+            "--iceoryx2-root-path".into(),
+            self.root.clone().into(),
+        ]
+    }
+
     /// An [`IpcConfig`] with the default service prefix in this namespace.
     pub fn ipc(&self) -> IpcConfig {
         IpcConfig::isolated(&self.global_prefix, &self.root)

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use ghnet_client::testing::{foreign_service, TestNamespace};
 use ghnet_client::{
-    HeadingEstimate, HeadingPublisher, HeadingSubscriber, OpenError, VelocityPublisher,
+    HeadingEstimate, HeadingPublisher, HeadingSubscriber, OpenError, Setting, VelocityPublisher,
     VelocitySample, VelocitySubscriber, SERVICE_SETTINGS,
 };
 
@@ -118,16 +118,24 @@ fn service_created_with_smaller_limits_is_refused() {
     // (iceoryx2 itself reports only the first). iceoryx2's defaults: 2 publishers
     // (we ask 4), a buffer of 2 (we ask 128).
     assert_eq!(service, "ghnet/gnss0/velocity");
-    let keys: Vec<_> = settings.iter().map(|m| m.key).collect();
+    let named: Vec<_> = settings.iter().map(|m| m.setting).collect();
     assert_eq!(
-        keys,
-        ["ipc.max_publishers", "ipc.subscriber_buffer"],
+        named,
+        [Setting::MaxPublishers, Setting::SubscriberBufferSize],
         "{msg}"
     );
     assert!(
-        msg.contains("fewer publisher slots than the 4 asked, created with 2 (ipc.max_publishers)")
-            && msg.ends_with("created with 2 (ipc.subscriber_buffer)"),
+        msg.contains(
+            "fewer publisher slots than the 4 asked, created with 2 (ServiceSettings::max_publishers)"
+        ) && msg.ends_with("created with 2 (ServiceSettings::subscriber_buffer_size)"),
         "{msg}"
+    );
+    // A program with names of its own for the settings (ghnetd: its config keys).
+    let err = VelocityPublisher::new(&ipc, "gnss0").err().unwrap();
+    let own = err.naming(|s| format!("my.{}", s.field()));
+    assert!(
+        own.ends_with("created with 2 (my.subscriber_buffer_size)"),
+        "{own}"
     );
 }
 

@@ -1,85 +1,126 @@
 //! Configuration: built-in defaults, then a TOML file, then command-line flags.
 //!
+//! Every key is defined once, as a field of its section struct: its type, its doc
+//! (the TOML key's documentation and the flag's `--help`), its flag and its default
+//! (`#[arg(...)]`) all sit on that field. serde reads the TOML file into the same
+//! structs clap fills from the command line, and [`Config::with_flags`] lays the keys
+//! a flag gave over the file's; the defaults are what clap fills in when no flag is
+//! given, so `Default` and `--help` cannot disagree.
+//!
 //! The file is optional; with none, `ghnetd` serves discovered sources with the
 //! embedded default model. Unknown keys are errors (a typo must not silently fall
-//! back to a default). `ghnetd --print-config` prints the effective result, and
-//! `daemon/ghnetd.example.toml` is tested to equal the defaults.
+//! back to a default). `ghnetd --print-config` prints the effective result;
+//! `daemon/ghnetd.example.toml` and the table in `daemon/README.md` are tested to name
+//! every key with its default.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::Path;
+use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
-use clap::Parser;
-use ghnet_client::{names, IpcConfig, ServiceSettings};
+use clap::{ArgAction, ArgMatches, FromArgMatches};
+use ghnet_client::{names, IpcConfig, ServiceSettings, SERVICE_SETTINGS};
 use ghnet_models::Platform;
 use serde::{Deserialize, Serialize};
+
+use crate::{host, layering};
 
 /// Upper bound for `sources.max_sources`: every source is one WaitSet attachment and
 /// four iceoryx2 ports; far more than one host's GNSS receivers.
 pub const MAX_SOURCES_LIMIT: usize = 1024;
 
-/// The daemon's configuration. Field docs are the documentation of the TOML keys.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+/// The daemon's configuration: one section per TOML table, each key a field whose
+/// doc is the key's documentation and whose `#[arg]` is its flag and default.
+///
+/// `clap::Args` so a command line can flatten it (every key becomes its flag, with
+/// the key as the argument id, e.g. `ipc.max_publishers`), serde for the TOML file
+/// and `--print-config`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default, clap::Args)]
 #[serde(deny_unknown_fields, default)]
 pub struct Config {
     /// Where the services live.
+    #[command(flatten)]
     pub ipc: IpcSection,
     /// Which sources are served.
+    #[command(flatten)]
     pub sources: SourcesSection,
     /// Which model answers, and its status thresholds.
+    #[command(flatten)]
     pub model: ModelSection,
     /// Per-source history of stateful models.
+    #[command(flatten)]
     pub history: HistorySection,
     /// Periodic counters in the log.
+    #[command(flatten)]
     pub stats: StatsSection,
     /// The Zenoh output, presence token and queryables.
+    #[command(flatten)]
     pub zenoh: ZenohSection,
 }
 
-/// `[ipc]`
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// `[ipc]`: service names and the iceoryx2 limits every process must share.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(deny_unknown_fields, default)]
+#[command(next_help_heading = "[ipc]")]
 pub struct IpcSection {
-    /// First level(s) of every service name: `<service_prefix>/<source>/velocity`.
+    /// ipc.service_prefix: first level(s) of the service names.
+    ///
+    /// `<service_prefix>/<source>/velocity` and `.../heading`.
+    #[arg(id = "ipc.service_prefix", long = "service-prefix", value_name = "PREFIX",
+          default_value_t = names::DEFAULT_PREFIX.to_owned())]
     pub service_prefix: String,
-    /// iceoryx2 `global.prefix` override (file-name prefix in `/dev/shm`); unset = the
-    /// system iceoryx2 config. Set it (with `iceoryx2_root_path`) to run an isolated
-    /// instance, e.g. in tests.
+    /// ipc.iceoryx2_global_prefix: iceoryx2 /dev/shm file prefix (isolated instances).
+    ///
+    /// Unset: the system iceoryx2 config. Set it (with `iceoryx2_root_path`) to run
+    /// an isolated instance, e.g. in tests.
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(
+        id = "ipc.iceoryx2_global_prefix",
+        long = "iceoryx2-global-prefix",
+        value_name = "PREFIX"
+    )]
     pub iceoryx2_global_prefix: Option<String>,
-    /// iceoryx2 root path override (node and service records, default `/tmp/iceoryx2/`).
+    /// ipc.iceoryx2_root_path: iceoryx2 root directory (isolated instances).
+    ///
+    /// Node and service records; the system default is `/tmp/iceoryx2/`.
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(
+        id = "ipc.iceoryx2_root_path",
+        long = "iceoryx2-root-path",
+        value_name = "DIR"
+    )]
     pub iceoryx2_root_path: Option<PathBuf>,
-    /// Publishers per service (ghnetd holds one per heading service; a source one per
-    /// velocity service, plus slack for a restarted one next to its dead predecessor).
-    /// Like every limit here: a *minimum* when the service already exists, so every
-    /// process of the deployment must use the same value (Rust clients:
-    /// `ServiceSettings` via `IpcConfig::with_settings`).
+    /// ipc.max_publishers: publisher slots per service (all processes must agree).
+    ///
+    /// ghnetd holds one per heading service; a source one per velocity service, plus
+    /// slack for a restarted one next to its dead predecessor. Like every limit here:
+    /// a *minimum* when the service already exists, so every process of the
+    /// deployment must use the same value (Rust clients: `ServiceSettings` via
+    /// `IpcConfig::with_settings`).
+    #[arg(id = "ipc.max_publishers", long = "max-publishers", value_name = "N",
+          default_value_t = SERVICE_SETTINGS.max_publishers)]
     pub max_publishers: usize,
-    /// Subscribers per service (ghnetd holds one per velocity service; consumers,
-    /// recorders and monitors one each per heading service).
+    /// ipc.max_subscribers: subscriber slots per service (all processes must agree).
+    ///
+    /// ghnetd holds one per velocity service; consumers, recorders and monitors one
+    /// each per heading service.
+    #[arg(id = "ipc.max_subscribers", long = "max-subscribers", value_name = "N",
+          default_value_t = SERVICE_SETTINGS.max_subscribers)]
     pub max_subscribers: usize,
+    /// ipc.max_nodes: processes per service (all processes must agree).
+    ///
     /// Processes (iceoryx2 nodes) that may have one service open at once.
+    #[arg(id = "ipc.max_nodes", long = "max-nodes", value_name = "N",
+          default_value_t = SERVICE_SETTINGS.max_nodes)]
     pub max_nodes: usize,
-    /// Messages a subscriber buffers before safe overflow overwrites the oldest (a
-    /// slow reader never blocks the publisher; it sees sequence gaps instead).
+    /// ipc.subscriber_buffer: messages buffered per subscriber (all processes must agree).
+    ///
+    /// When full, safe overflow overwrites the oldest (a slow reader never blocks the
+    /// publisher; it sees sequence gaps instead).
+    #[arg(id = "ipc.subscriber_buffer", long = "subscriber-buffer", value_name = "N",
+          default_value_t = SERVICE_SETTINGS.subscriber_buffer_size)]
     pub subscriber_buffer: usize,
-}
-
-impl Default for IpcSection {
-    fn default() -> Self {
-        let s = ghnet_client::SERVICE_SETTINGS;
-        Self {
-            service_prefix: names::DEFAULT_PREFIX.to_owned(),
-            iceoryx2_global_prefix: None,
-            iceoryx2_root_path: None,
-            max_publishers: s.max_publishers,
-            max_subscribers: s.max_subscribers,
-            max_nodes: s.max_nodes,
-            subscriber_buffer: s.subscriber_buffer_size,
-        }
-    }
 }
 
 impl IpcSection {
@@ -99,6 +140,17 @@ impl IpcSection {
         }
         Ok(())
     }
+
+    /// Shared memory one source's services take with these limits, in bytes (the
+    /// model and its measurements: `host::shm_need`).
+    pub(crate) fn shm_per_source(&self) -> u64 {
+        host::shm_need(
+            self.max_publishers as u64,
+            self.max_subscribers as u64,
+            self.max_nodes as u64,
+            self.subscriber_buffer as u64,
+        )
+    }
 }
 
 /// Upper bound of the `ipc.max_*` slot limits: each slot costs shared memory in every
@@ -108,40 +160,62 @@ pub const MAX_SLOTS_LIMIT: usize = 1024;
 /// Upper bound of `ipc.subscriber_buffer` (messages).
 pub const MAX_SUBSCRIBER_BUFFER: usize = 65_536;
 
-/// `[sources]`
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// `[sources]`: which sources are served, and how they are found and watched.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(deny_unknown_fields, default)]
+#[command(next_help_heading = "[sources]")]
 pub struct SourcesSection {
-    /// Sources served from the start and never dropped, even without publishers.
+    /// sources.static: serve this source from the start (repeatable; replaces the
+    /// file's list).
+    ///
+    /// Static sources are never dropped, even without publishers.
     #[serde(rename = "static")]
+    #[arg(id = "sources.static", long = "source", value_name = "NAME")]
     pub static_sources: Vec<String>,
-    /// Serve any `<prefix>/<source>/velocity` service that appears while running, and
-    /// drop it again when its last publisher is gone.
+    /// sources.discovery: serve sources that appear while running.
+    ///
+    /// Serves any `<prefix>/<source>/velocity` service that appears, and drops it
+    /// again when its last publisher is gone.
+    #[arg(id = "sources.discovery", long = "discovery", value_name = "BOOL",
+          num_args = 1, action = ArgAction::Set, default_value_t = true)]
     pub discovery: bool,
-    /// How often to look for new sources, gone publishers and dead processes (ms).
-    /// A pass lists the iceoryx2 services only when their directory changed (or
-    /// every 5 s), so a short interval costs next to nothing while idle.
+    /// sources.discovery_interval_ms: discovery and liveness period.
+    ///
+    /// How often to look for new sources, gone publishers and dead processes. A pass
+    /// lists the iceoryx2 services only when their directory changed (or every 5 s),
+    /// so a short interval costs next to nothing while idle.
+    #[arg(
+        id = "sources.discovery_interval_ms",
+        long = "discovery-interval-ms",
+        value_name = "MS",
+        default_value_t = 250
+    )]
     pub discovery_interval_ms: u64,
-    /// Most sources served at once (static + discovered); more are logged and ignored.
+    /// sources.max_sources: most sources served at once.
+    ///
+    /// Static + discovered; more are logged and ignored.
+    #[arg(
+        id = "sources.max_sources",
+        long = "max-sources",
+        value_name = "N",
+        default_value_t = 32
+    )]
     pub max_sources: usize,
-    /// A source that has sent nothing for longer than this (ms) gets ONE
-    /// `HeadingEstimate` with status `Stale` (sequence number and timestamp of its last
-    /// sample, heading and σ NaN), so a consumer learns that the silence is not a
-    /// stationary vehicle; checked every `discovery_interval_ms`. A discovered source
-    /// whose publishers are gone is dropped only after its Stale message. 0 = off.
+    /// sources.stale_after_ms: silence after which a source gets one Stale message,
+    /// 0 = off.
+    ///
+    /// A source that has sent nothing for longer than this gets ONE `HeadingEstimate`
+    /// with status `Stale` (sequence number and timestamp of its last sample, heading
+    /// and σ NaN), so a consumer learns that the silence is not a stationary vehicle;
+    /// checked every `discovery_interval_ms`. A discovered source whose publishers
+    /// are gone is dropped only after its Stale message.
+    #[arg(
+        id = "sources.stale_after_ms",
+        long = "stale-after-ms",
+        value_name = "MS",
+        default_value_t = 2500
+    )]
     pub stale_after_ms: u64,
-}
-
-impl Default for SourcesSection {
-    fn default() -> Self {
-        Self {
-            static_sources: Vec::new(),
-            discovery: true,
-            discovery_interval_ms: 250,
-            max_sources: 32,
-            stale_after_ms: 2500,
-        }
-    }
 }
 
 impl SourcesSection {
@@ -175,53 +249,52 @@ impl SourcesSection {
     }
 }
 
-/// `[model]`
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// `[model]`: which model answers, its status thresholds and the sources' platforms.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(deny_unknown_fields, default)]
+#[command(next_help_heading = "[model]")]
 pub struct ModelSection {
-    /// A built-in model (`ghnet-epoch`, `ghnet-temporal`, `kf`, `paper-s1`) or a path to a `.safetensors` file
-    /// (relative to the working directory).
+    /// model.name: built-in model name or .safetensors path.
+    ///
+    /// Built-in: `ghnet-epoch`, `ghnet-temporal`, `kf`, `paper-s1`; a path is
+    /// relative to the working directory.
+    #[arg(id = "model.name", long = "model", value_name = "NAME|PATH",
+          default_value_t = ghnet_models::DEFAULT_MODEL.to_owned())]
     pub name: String,
-    /// Below this horizontal speed (m/s) the status is `Stationary`.
+    /// model.stationary_speed (m/s): below this horizontal speed the status is
+    /// `Stationary`.
+    #[arg(id = "model.stationary_speed", long = "stationary-speed", value_name = "M_PER_S",
+          default_value_t = f32_to_f64(ghnet_models::StatusPolicy::default().stationary_speed))]
     pub stationary_speed: f64,
-    /// Above this heading σ (deg) the status is `LowSpeed`.
+    /// model.max_std_deg (deg): above this heading σ the status is `LowSpeed`.
+    #[arg(id = "model.max_std_deg", long = "max-std-deg", value_name = "DEG",
+          default_value_t = f32_to_f64(ghnet_models::StatusPolicy::default().max_std_deg))]
     pub max_std_deg: f64,
-    /// Above this speed (m/s) the input is `InvalidInput` (a receiver glitch, not a
-    /// vehicle).
+    /// model.max_speed (m/s): above this speed the input is `InvalidInput` (a
+    /// receiver glitch, not a vehicle).
+    #[arg(id = "model.max_speed", long = "max-speed", value_name = "M_PER_S",
+          default_value_t = f32_to_f64(ghnet_models::StatusPolicy::default().max_speed))]
     pub max_speed: f64,
+    /// model.platform: auto, car or robot (every source without an override).
+    ///
     /// What carries the sources' receivers, for the temporal model: `auto` (decides
     /// online), `car` (reverses, never turns in place) or `robot` (turns in place).
     /// Unset: the model's own default (`auto` for the built-in models).
+    #[arg(id = "model.platform", long = "platform", value_name = "PLATFORM")]
     pub platform: Option<Platform>,
-    /// Per-source overrides of `platform`: source name to platform.
-    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub platforms: BTreeMap<String, Platform>,
-}
-
-impl Default for ModelSection {
-    fn default() -> Self {
-        let p = ghnet_models::StatusPolicy::default();
-        Self {
-            name: ghnet_models::DEFAULT_MODEL.to_owned(),
-            // Through the f32 Display so 0.05f32 becomes 0.05, not 0.05000000074505806.
-            stationary_speed: f32_to_f64(p.stationary_speed),
-            max_std_deg: f32_to_f64(p.max_std_deg),
-            max_speed: f32_to_f64(p.max_speed),
-            platform: None,
-            platforms: BTreeMap::new(),
-        }
-    }
+    /// Per-source overrides of `platform` (`[model.platforms]`, `--source-platform`).
+    #[serde(skip_serializing_if = "Platforms::is_empty")]
+    #[command(flatten)]
+    pub platforms: Platforms,
 }
 
 impl ModelSection {
     /// The platform of `source`: its override, else `platform`; `None` leaves the
     /// model's own default.
     pub fn platform_of(&self, source: &str) -> Option<Platform> {
-        self.platforms.get(source).copied().or(self.platform)
+        self.platforms.0.get(source).copied().or(self.platform)
     }
-}
 
-impl ModelSection {
     fn validate(&self) -> anyhow::Result<()> {
         if self.name.trim().is_empty() {
             bail!("model.name: empty; use a built-in name (ghnet-epoch, ghnet-temporal, kf, paper-s1) or a .safetensors path");
@@ -235,7 +308,7 @@ impl ModelSection {
                 bail!("{key}: {v} must be a positive number");
             }
         }
-        for name in self.platforms.keys() {
+        for name in self.platforms.0.keys() {
             names::validate_source_name(name).context("model.platforms")?;
         }
         if self.stationary_speed >= self.max_speed {
@@ -249,20 +322,71 @@ impl ModelSection {
     }
 }
 
+/// `model.platforms`: source name to platform, overriding `model.platform` per
+/// source. In TOML a `[model.platforms]` table; on the command line
+/// `--source-platform SOURCE=PLATFORM`, repeatable, each adding to the file's table
+/// (a map has no derived flag, so this type says how clap fills it).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Platforms(pub BTreeMap<String, Platform>);
+
+impl Platforms {
+    /// The flag's argument id: the key, like every other flag's.
+    const ID: &'static str = "model.platforms";
+
+    /// Whether no source has an override.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+impl clap::FromArgMatches for Platforms {
+    fn from_arg_matches(matches: &ArgMatches) -> Result<Self, clap::Error> {
+        let given = matches.get_many::<(String, Platform)>(Self::ID);
+        Ok(Self(given.into_iter().flatten().cloned().collect()))
+    }
+
+    fn update_from_arg_matches(&mut self, matches: &ArgMatches) -> Result<(), clap::Error> {
+        self.0.extend(Self::from_arg_matches(matches)?.0);
+        Ok(())
+    }
+}
+
+impl clap::Args for Platforms {
+    fn augment_args(cmd: clap::Command) -> clap::Command {
+        cmd.arg(
+            clap::Arg::new(Self::ID)
+                .long("source-platform")
+                .value_name("SOURCE=PLATFORM")
+                .action(ArgAction::Append)
+                .value_parser(parse_source_platform)
+                .help("model.platforms: one source's platform, as SOURCE=PLATFORM (repeatable)"),
+        )
+    }
+
+    fn augment_args_for_update(cmd: clap::Command) -> clap::Command {
+        Self::augment_args(cmd)
+    }
+}
+
 /// Longest `history.max_gap_s`: beyond an hour a held heading means nothing.
 pub const MAX_GAP_LIMIT_S: f64 = 3600.0;
 
 /// `[history]`: how stateful models (`kf`, `ghnet-temporal`) keep each source's
 /// history. Per-epoch models keep none and ignore it.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(deny_unknown_fields, default)]
+#[command(next_help_heading = "[history]")]
 pub struct HistorySection {
-    /// A time step longer than this (seconds) clears the source's history (the vehicle
-    /// may have turned anywhere meanwhile). Unset: the model's own `max_gap_s` (10 s
-    /// for the built-in models). Raise it for receivers that report rarely (below
-    /// 0.1 Hz) or lose fixes in tunnels on roads that do not turn; lower it for
-    /// platforms that turn in place.
+    /// history.max_gap_s: a longer time step clears a source's history (stateful
+    /// models; default: the model's own limit).
+    ///
+    /// In seconds (the vehicle may have turned anywhere meanwhile). Unset: the
+    /// model's own `max_gap_s` (10 s for the built-in models). Raise it for receivers
+    /// that report rarely (below 0.1 Hz) or lose fixes in tunnels on roads that do not
+    /// turn; lower it for platforms that turn in place.
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(id = "history.max_gap_s", long = "history-max-gap-s", value_name = "S")]
     pub max_gap_s: Option<f64>,
 }
 
@@ -277,78 +401,77 @@ impl HistorySection {
     }
 }
 
-fn f32_to_f64(v: f32) -> f64 {
-    v.to_string().parse().unwrap_or(v as f64)
-}
-
-/// `[stats]`
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// `[stats]`: the periodic counter lines in the log.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(deny_unknown_fields, default)]
+#[command(next_help_heading = "[stats]")]
 pub struct StatsSection {
-    /// Seconds between per-source counter lines at info level (0..=86400); 0 = never.
+    /// stats.interval_s: seconds between counter log lines, 0 = never.
+    ///
+    /// Per-source counter lines at info level, 0..=86400.
+    #[arg(
+        id = "stats.interval_s",
+        long = "stats-interval-s",
+        value_name = "S",
+        default_value_t = 10
+    )]
     pub interval_s: u64,
 }
 
-impl Default for StatsSection {
-    fn default() -> Self {
-        Self { interval_s: 10 }
-    }
-}
-
-/// `[zenoh]`
+/// `[zenoh]`: the Zenoh output, presence token and queryables.
 ///
 /// ghnetd's keys are applied on top of `config_file` (a standard Zenoh json5 config),
 /// so the loopback-only defaults hold unless they are changed here; everything
 /// without a key here (TLS, ACL, timeouts, ...) comes from the file.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(deny_unknown_fields, default)]
+#[command(next_help_heading = "[zenoh]")]
 pub struct ZenohSection {
-    /// Publish every heading on Zenoh too, and declare presence and queryables.
+    /// zenoh.enabled: also publish headings on Zenoh.
+    ///
+    /// Every heading, plus the presence token and the queryables.
+    #[arg(id = "zenoh.enabled", long = "zenoh", value_name = "BOOL", num_args = 1,
+          action = ArgAction::Set, default_value_t = true)]
     pub enabled: bool,
-    /// Zenoh mode: `peer` (default; consumers connect directly), `client` (connect to
-    /// a router, listen nowhere) or `router`.
+    /// zenoh.mode: peer, client or router.
+    ///
+    /// `peer` (consumers connect directly), `client` (connect to a router, listen
+    /// nowhere) or `router`.
+    #[arg(id = "zenoh.mode", long = "zenoh-mode", value_name = "MODE",
+          default_value_t = String::from("peer"))]
     pub mode: String,
-    /// Endpoints to listen on. Loopback only by default; port 0 picks a free port
-    /// (the log says which). An empty list listens nowhere.
+    /// zenoh.listen: Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable;
+    /// replaces the file's list).
+    ///
+    /// Loopback only by default; port 0 picks a free port (the log says which). An
+    /// empty list (in the file) listens nowhere.
+    #[arg(id = "zenoh.listen", long = "zenoh-listen", value_name = "ENDPOINT",
+          default_values_t = [format!("tcp/127.0.0.1:{}", ghnet_client::DEFAULT_ZENOH_PORT)])]
     pub listen: Vec<String>,
-    /// Endpoints to connect to, e.g. a Zenoh router `tcp/10.0.0.1:7447`. Empty: keep
-    /// the file's (none without a file).
+    /// zenoh.connect: Zenoh endpoint to connect to, e.g. a router (repeatable).
+    ///
+    /// E.g. a Zenoh router `tcp/10.0.0.1:7447`. Empty: keep the file's (none without
+    /// a file).
+    #[arg(id = "zenoh.connect", long = "zenoh-connect", value_name = "ENDPOINT")]
     pub connect: Vec<String>,
     /// Zenoh multicast scouting (UDP 224.0.0.224:7446). Off: ghnetd announces itself
-    /// to nobody.
+    /// to nobody. No flag: a file key only.
+    #[arg(skip = false)]
     pub multicast_scouting: bool,
     /// Zenoh gossip scouting (peers telling each other about peers). Off by default.
+    /// No flag: a file key only.
+    #[arg(skip = false)]
     pub gossip: bool,
-    /// A standard Zenoh json5 config file for everything else (router connection,
-    /// TLS, access control, timeouts). Unset: Zenoh's defaults under the keys above,
-    /// except ghnetd's transmit queue ([`ZENOH_TX_DEFAULTS`]); a file's own values rule
-    /// instead, so a file should keep them.
+    /// zenoh.config_file: standard Zenoh json5 config for everything else (TLS, ACL,
+    /// router); ghnetd's zenoh keys still apply on top.
+    ///
+    /// Unset: Zenoh's defaults under the keys above, except ghnetd's transmit queue
+    /// (`ghnet_client::ZENOH_TX_QUEUE`; why: daemon/README.md, "Zenoh transmit
+    /// queue"); a file's own values rule instead, so a file should keep them.
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(id = "zenoh.config_file", long = "zenoh-config", value_name = "FILE")]
     pub config_file: Option<PathBuf>,
 }
-
-impl Default for ZenohSection {
-    fn default() -> Self {
-        Self {
-            enabled: true,
-            mode: "peer".to_owned(),
-            listen: vec![format!(
-                "tcp/127.0.0.1:{}",
-                ghnet_client::DEFAULT_ZENOH_PORT
-            )],
-            connect: Vec::new(),
-            multicast_scouting: false,
-            gossip: false,
-            config_file: None,
-        }
-    }
-}
-
-/// ghnetd's Zenoh transmit queue when no `zenoh.config_file` is given (JSON5 values
-/// by config path; a config file replaces them): 16 batches, and up to 50 ms for one
-/// to free before a heading is dropped. Why: daemon/README.md, section "Zenoh
-/// transmit queue".
-pub const ZENOH_TX_DEFAULTS: [(&str, &str); 2] = ghnet_client::ZENOH_TX_QUEUE;
 
 impl ZenohSection {
     fn validate(&self) -> anyhow::Result<()> {
@@ -374,66 +497,40 @@ impl ZenohSection {
                 .map_err(|e| anyhow::anyhow!("zenoh.config_file {}: {e}", path.display()))?,
             None => {
                 let mut c = zenoh::Config::default();
-                for (key, value) in ZENOH_TX_DEFAULTS {
+                for (key, value) in ghnet_client::ZENOH_TX_QUEUE {
                     c.insert_json5(key, value)
                         .map_err(|e| anyhow::anyhow!("zenoh default {key}: {e}"))?;
                 }
                 c
             }
         };
-        let set = |c: &mut zenoh::Config, key: &str, what: &str, json: String| {
-            c.insert_json5(key, &json)
-                .map_err(|e| anyhow::anyhow!("{what}: {json}: {e}"))
-        };
-        set(&mut c, "mode", "zenoh.mode", format!("\"{}\"", self.mode))?;
-        set(
-            &mut c,
-            "listen/endpoints",
-            "zenoh.listen",
-            json_list(&self.listen),
-        )?;
-        if !self.connect.is_empty() || self.config_file.is_none() {
-            set(
-                &mut c,
-                "connect/endpoints",
-                "zenoh.connect",
-                json_list(&self.connect),
-            )?;
+        let connect = !self.connect.is_empty() || self.config_file.is_none();
+        let keys = [
+            Some(("mode", "zenoh.mode", format!("\"{}\"", self.mode))),
+            Some(("listen/endpoints", "zenoh.listen", json_list(&self.listen))),
+            connect.then(|| {
+                (
+                    "connect/endpoints",
+                    "zenoh.connect",
+                    json_list(&self.connect),
+                )
+            }),
+            Some((
+                "scouting/multicast/enabled",
+                "zenoh.multicast_scouting",
+                self.multicast_scouting.to_string(),
+            )),
+            Some((
+                "scouting/gossip/enabled",
+                "zenoh.gossip",
+                self.gossip.to_string(),
+            )),
+        ];
+        for (path, key, json) in keys.into_iter().flatten() {
+            c.insert_json5(path, &json)
+                .map_err(|e| anyhow::anyhow!("{key}: {json}: {e}"))?;
         }
-        set(
-            &mut c,
-            "scouting/multicast/enabled",
-            "zenoh.multicast_scouting",
-            self.multicast_scouting.to_string(),
-        )?;
-        set(
-            &mut c,
-            "scouting/gossip/enabled",
-            "zenoh.gossip",
-            self.gossip.to_string(),
-        )?;
         Ok(c)
-    }
-}
-
-/// A flag that was given replaces the key.
-fn set<T: Clone>(key: &mut T, flag: &Option<T>) {
-    if let Some(v) = flag {
-        *key = v.clone();
-    }
-}
-
-/// A flag that was given sets an optional key.
-fn set_some<T: Clone>(key: &mut Option<T>, flag: &Option<T>) {
-    if flag.is_some() {
-        key.clone_from(flag);
-    }
-}
-
-/// A repeatable flag given at least once replaces the whole list.
-fn set_list(key: &mut Vec<String>, flag: &[String]) {
-    if !flag.is_empty() {
-        *key = flag.to_vec();
     }
 }
 
@@ -441,145 +538,11 @@ fn json_list(items: &[String]) -> String {
     serde_json::to_string(items).expect("strings always serialise")
 }
 
-/// Command-line flags. Every flag overrides the matching config key.
-#[derive(Debug, Clone, Default, Parser)]
-#[command(
-    name = "ghnetd",
-    version,
-    about = "ghnet heading sidecar: answers GNSS velocity samples on iceoryx2 with heading estimates",
-    long_about = "ghnet heading sidecar: reads VelocitySample from <prefix>/<source>/velocity \
-                  and answers each with one HeadingEstimate on <prefix>/<source>/heading.\n\n\
-                  Precedence: built-in defaults < --config file < flags. Logging: RUST_LOG \
-                  (default info, Zenoh's gossip-disabled warning off). SIGINT/SIGTERM: \
-                  answer what is buffered, release iceoryx2 resources, exit 0."
-)]
-pub struct Cli {
-    /// TOML config file; without one the built-in defaults apply.
-    #[arg(long, short = 'c', env = "GHNETD_CONFIG", value_name = "FILE")]
-    pub config: Option<PathBuf>,
-    /// Print the effective config as TOML and exit.
-    #[arg(long)]
-    pub print_config: bool,
-    /// ipc.service_prefix: first level(s) of the service names.
-    #[arg(long, value_name = "PREFIX")]
-    pub service_prefix: Option<String>,
-    /// ipc.iceoryx2_global_prefix: iceoryx2 /dev/shm file prefix (isolated instances).
-    #[arg(long, value_name = "PREFIX")]
-    pub iceoryx2_global_prefix: Option<String>,
-    /// ipc.iceoryx2_root_path: iceoryx2 root directory (isolated instances).
-    #[arg(long, value_name = "DIR")]
-    pub iceoryx2_root_path: Option<PathBuf>,
-    /// ipc.max_publishers: publisher slots per service (all processes must agree).
-    #[arg(long, value_name = "N")]
-    pub max_publishers: Option<usize>,
-    /// ipc.max_subscribers: subscriber slots per service (all processes must agree).
-    #[arg(long, value_name = "N")]
-    pub max_subscribers: Option<usize>,
-    /// ipc.max_nodes: processes per service (all processes must agree).
-    #[arg(long, value_name = "N")]
-    pub max_nodes: Option<usize>,
-    /// ipc.subscriber_buffer: messages buffered per subscriber (all processes must agree).
-    #[arg(long, value_name = "N")]
-    pub subscriber_buffer: Option<usize>,
-    /// sources.static: serve this source from the start (repeatable; replaces the
-    /// file's list).
-    #[arg(long = "source", value_name = "NAME")]
-    pub sources: Vec<String>,
-    /// sources.discovery: serve sources that appear while running.
-    #[arg(long, value_name = "BOOL", num_args = 1)]
-    pub discovery: Option<bool>,
-    /// sources.discovery_interval_ms: discovery and liveness period.
-    #[arg(long, value_name = "MS")]
-    pub discovery_interval_ms: Option<u64>,
-    /// sources.max_sources: most sources served at once.
-    #[arg(long, value_name = "N")]
-    pub max_sources: Option<usize>,
-    /// sources.stale_after_ms: silence after which a source gets one Stale message,
-    /// 0 = off.
-    #[arg(long, value_name = "MS")]
-    pub stale_after_ms: Option<u64>,
-    /// model.name: built-in model name or .safetensors path.
-    #[arg(long, value_name = "NAME|PATH")]
-    pub model: Option<String>,
-    /// model.stationary_speed (m/s).
-    #[arg(long, value_name = "M_PER_S")]
-    pub stationary_speed: Option<f64>,
-    /// model.max_std_deg (deg).
-    #[arg(long, value_name = "DEG")]
-    pub max_std_deg: Option<f64>,
-    /// model.max_speed (m/s).
-    #[arg(long, value_name = "M_PER_S")]
-    pub max_speed: Option<f64>,
-    /// model.platform: auto, car or robot (every source without an override).
-    #[arg(long, value_name = "PLATFORM")]
-    pub platform: Option<Platform>,
-    /// model.platforms: one source's platform, as SOURCE=PLATFORM (repeatable).
-    #[arg(long, value_name = "SOURCE=PLATFORM", value_parser = parse_source_platform)]
-    pub source_platform: Vec<(String, Platform)>,
-    /// history.max_gap_s: a longer time step clears a source's history (stateful
-    /// models; default: the model's own limit).
-    #[arg(long, value_name = "S")]
-    pub history_max_gap_s: Option<f64>,
-    /// stats.interval_s: seconds between counter log lines, 0 = never.
-    #[arg(long, value_name = "S")]
-    pub stats_interval_s: Option<u64>,
-    /// zenoh.enabled: also publish headings on Zenoh.
-    #[arg(long = "zenoh", value_name = "BOOL", num_args = 1)]
-    pub zenoh_enabled: Option<bool>,
-    /// zenoh.mode: peer, client or router.
-    #[arg(long, value_name = "MODE")]
-    pub zenoh_mode: Option<String>,
-    /// zenoh.listen: Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable;
-    /// replaces the file's list).
-    #[arg(long = "zenoh-listen", value_name = "ENDPOINT")]
-    pub zenoh_listen: Vec<String>,
-    /// zenoh.connect: Zenoh endpoint to connect to, e.g. a router (repeatable).
-    #[arg(long = "zenoh-connect", value_name = "ENDPOINT")]
-    pub zenoh_connect: Vec<String>,
-    /// zenoh.config_file: standard Zenoh json5 config for everything else (TLS, ACL,
-    /// router); ghnetd's zenoh keys still apply on top.
-    #[arg(long = "zenoh-config", value_name = "FILE")]
-    pub zenoh_config: Option<PathBuf>,
-}
-
 impl Config {
-    /// Parses TOML text (unknown keys are errors).
-    ///
-    /// Errors are one line that names the place: `line 2 ([sources] discovery =
-    /// "yes"): invalid type: string "yes", expected a boolean`. toml's own message
-    /// says what is wrong but not which key (a wrong type points at the value), and its
-    /// `Display` spans several lines, so the line's section and text are quoted here.
+    /// Parses TOML text (unknown keys are errors); an error is one line naming the
+    /// line, its section and its text.
     pub fn from_toml(text: &str) -> anyhow::Result<Self> {
-        toml::from_str(text).map_err(|e| {
-            let msg = e.message().replace(['\n', '\r'], " ");
-            // `get`, not indexing: a span is a byte range and must never panic here.
-            match e.span().and_then(|span| text.get(..span.start)) {
-                Some(before) => {
-                    let line = before.matches('\n').count() + 1;
-                    // The lines before this one (the span may start mid-line).
-                    let above = &before[..before.rfind('\n').unwrap_or(0)];
-                    let section = above
-                        .lines()
-                        .rev()
-                        .map(str::trim)
-                        .find(|l| l.starts_with('['));
-                    let quoted: String = text
-                        .lines()
-                        .nth(line - 1)
-                        .unwrap_or_default()
-                        .trim()
-                        .chars()
-                        .take(80)
-                        .collect();
-                    let place = match section {
-                        Some(s) if !quoted.starts_with('[') => format!("{s} {quoted}"),
-                        _ => quoted,
-                    };
-                    anyhow::anyhow!("line {line} ({place}): {msg}")
-                }
-                None => anyhow::anyhow!(msg),
-            }
-        })
+        layering::parse(text)
     }
 
     /// Reads and parses a TOML file.
@@ -589,65 +552,46 @@ impl Config {
         Self::from_toml(&text).with_context(|| format!("config file {}", path.display()))
     }
 
-    /// Defaults, then `cli.config` if given, then the flags; validated.
-    pub fn from_cli(cli: &Cli) -> anyhow::Result<Self> {
-        let mut cfg = match &cli.config {
+    /// The effective config of one start: `file` if given (else the defaults), then
+    /// the keys the command line gave ([`with_flags`](Self::with_flags)); validated.
+    pub fn load(file: Option<&Path>, matches: &ArgMatches) -> anyhow::Result<Self> {
+        let base = match file {
             Some(path) => Self::from_file(path)?,
             None => Self::default(),
         };
-        cfg.apply_flags(cli);
+        let cfg = base.with_flags(matches)?;
         cfg.validate()?;
         Ok(cfg)
     }
 
-    /// Overrides keys with the flags that were given.
-    pub fn apply_flags(&mut self, cli: &Cli) {
-        set(&mut self.ipc.service_prefix, &cli.service_prefix);
-        set_some(
-            &mut self.ipc.iceoryx2_global_prefix,
-            &cli.iceoryx2_global_prefix,
-        );
-        set_some(&mut self.ipc.iceoryx2_root_path, &cli.iceoryx2_root_path);
-        set(&mut self.ipc.max_publishers, &cli.max_publishers);
-        set(&mut self.ipc.max_subscribers, &cli.max_subscribers);
-        set(&mut self.ipc.max_nodes, &cli.max_nodes);
-        set(&mut self.ipc.subscriber_buffer, &cli.subscriber_buffer);
-        set_list(&mut self.sources.static_sources, &cli.sources);
-        set(&mut self.sources.discovery, &cli.discovery);
-        set(
-            &mut self.sources.discovery_interval_ms,
-            &cli.discovery_interval_ms,
-        );
-        set(&mut self.sources.max_sources, &cli.max_sources);
-        set(&mut self.sources.stale_after_ms, &cli.stale_after_ms);
-        set(&mut self.model.name, &cli.model);
-        set(&mut self.model.stationary_speed, &cli.stationary_speed);
-        set(&mut self.model.max_std_deg, &cli.max_std_deg);
-        set(&mut self.model.max_speed, &cli.max_speed);
-        set_some(&mut self.model.platform, &cli.platform);
-        self.model
-            .platforms
-            .extend(cli.source_platform.iter().cloned());
-        set_some(&mut self.history.max_gap_s, &cli.history_max_gap_s);
-        set(&mut self.stats.interval_s, &cli.stats_interval_s);
-        set(&mut self.zenoh.enabled, &cli.zenoh_enabled);
-        set(&mut self.zenoh.mode, &cli.zenoh_mode);
-        set_list(&mut self.zenoh.listen, &cli.zenoh_listen);
-        set_list(&mut self.zenoh.connect, &cli.zenoh_connect);
-        set_some(&mut self.zenoh.config_file, &cli.zenoh_config);
+    /// This config with every key a flag (or its environment variable) gave replaced
+    /// by that value. `matches` come from a command that flattens [`Config`], whose
+    /// argument ids are the keys. A list flag replaces the list; a table flag
+    /// (`--source-platform`) adds its entries to the table.
+    pub fn with_flags(&self, matches: &ArgMatches) -> anyhow::Result<Self> {
+        let flags = toml::Table::try_from(Self::from_arg_matches(matches)?)
+            .context("command-line flags")?;
+        let base = toml::Table::try_from(self).expect("the config always serialises");
+        let merged = layering::overlay(base, &flags, matches);
+        merged.try_into().context("command-line flags")
     }
 
-    /// Checks every value; the error names the key to fix. (The model file is checked
-    /// when it is loaded.)
+    /// Checks every value, and that the host can hold what the `ipc.*` settings ask
+    /// for; the error names the key to fix. (The model file is checked when it is
+    /// loaded.)
     pub fn validate(&self) -> anyhow::Result<()> {
         names::validate_prefix(&self.ipc.service_prefix).context("ipc.service_prefix")?;
         // Builds the iceoryx2 config, which checks prefix and root path.
         self.ipc_config()?;
         if let Some(root) = &self.ipc.iceoryx2_root_path {
-            check_root_path(root).context("ipc.iceoryx2_root_path")?;
+            host::check_root_path(root).context("ipc.iceoryx2_root_path")?;
         }
         self.ipc.validate()?;
-        self.check_shared_memory()?;
+        // The `ipc.*` settings are allowed up to far more than a host has shared
+        // memory for: refuse settings whose one source would not fit in the whole of
+        // /dev/shm rather than let the first source end in SIGBUS.
+        host::check_shm_fits(self.ipc.shm_per_source())
+            .context("ipc.max_publishers / max_subscribers / max_nodes / subscriber_buffer")?;
         self.sources.validate()?;
         if self.stats.interval_s > 86_400 {
             bail!(
@@ -658,22 +602,6 @@ impl Config {
         self.model.validate()?;
         self.history.validate()?;
         self.zenoh.validate()
-    }
-
-    /// The `ipc.*` settings are allowed up to far more than a host has shared memory
-    /// for (every service of every source reserves its slots and buffers): refuses
-    /// settings whose one source would not fit in the whole of /dev/shm, saying how
-    /// much they need, rather than let the first source end in SIGBUS.
-    fn check_shared_memory(&self) -> anyhow::Result<()> {
-        let need = crate::pressure::shm_per_source(self);
-        let dir = std::path::Path::new(crate::pressure::SHM_DIR);
-        match crate::pressure::fs_size(dir) {
-            Some(size) if need > size => bail!(
-                "ipc.max_publishers / max_subscribers / max_nodes / subscriber_buffer: one source needs about {need} bytes of shared memory with these values, more than {} holds ({size} bytes)",
-                dir.display()
-            ),
-            _ => Ok(()),
-        }
     }
 
     /// The client-side view: service prefix plus the iceoryx2 config with overrides
@@ -726,47 +654,38 @@ impl Config {
     }
 }
 
-/// Refuses an iceoryx2 root path ghnetd must not own: ghnetd writes its lock file,
-/// node and service records there and makes it owner-only, so `/`, a pseudo
-/// filesystem, a file, another user's directory or a world-writable directory without
-/// the sticky bit (anyone could replace ghnetd's records) are configuration errors,
-/// reported before anything is created. A path that does not exist yet is created.
-fn check_root_path(root: &std::path::Path) -> anyhow::Result<()> {
-    use std::os::unix::fs::MetadataExt;
-    let shown = root.display();
-    let canonical = root.canonicalize().unwrap_or_else(|_| root.to_owned());
-    if canonical == std::path::Path::new("/") {
-        bail!("`{shown}` is the filesystem root; use a directory of its own, e.g. /tmp/iceoryx2");
-    }
-    for pseudo in ["/proc", "/sys", "/dev"] {
-        if canonical.starts_with(pseudo) {
-            bail!("`{shown}` is under {pseudo}, not a directory ghnetd may own");
+/// Each section's `Default` is what clap fills in when no flag is given, so each
+/// default is written once, on its field's `#[arg]`.
+macro_rules! defaults_from_clap {
+    ($($section:ty),*) => {$(
+        impl Default for $section {
+            fn default() -> Self {
+                clap_defaults()
+            }
         }
-    }
-    let meta = match std::fs::metadata(&canonical) {
-        Ok(m) => m,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => bail!("`{shown}`: {e}"),
-    };
-    if !meta.is_dir() {
-        bail!("`{shown}` is not a directory");
-    }
-    // SAFETY: geteuid cannot fail and touches no memory.
-    let me = unsafe { libc::geteuid() };
-    if meta.uid() != me {
-        bail!(
-            "`{shown}` is owned by uid {}, not by this user (uid {me})",
-            meta.uid()
-        );
-    }
-    let mode = meta.mode();
-    if mode & 0o002 != 0 && mode & 0o1000 == 0 {
-        bail!(
-            "`{shown}` is world-writable without the sticky bit (mode {:o})",
-            mode & 0o7777
-        );
-    }
-    Ok(())
+    )*};
+}
+defaults_from_clap!(
+    IpcSection,
+    SourcesSection,
+    ModelSection,
+    HistorySection,
+    StatsSection,
+    ZenohSection
+);
+
+/// A section with every key at its default (see `defaults_from_clap`).
+fn clap_defaults<T: clap::Args + FromArgMatches>() -> T {
+    let cmd = T::augment_args(clap::Command::new("ghnetd").no_binary_name(true));
+    let matches = cmd
+        .try_get_matches_from(std::iter::empty::<String>())
+        .expect("no key is required");
+    T::from_arg_matches(&matches).expect("every default parses")
+}
+
+/// Through the f32 `Display`, so 0.05f32 becomes 0.05, not 0.05000000074505806.
+fn f32_to_f64(v: f32) -> f64 {
+    v.to_string().parse().unwrap_or(v as f64)
 }
 
 /// `SOURCE=PLATFORM` of `--source-platform`.
@@ -780,6 +699,7 @@ fn parse_source_platform(s: &str) -> Result<(String, Platform), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::{Arg, Args, Command};
 
     const EXAMPLE: &str = include_str!("../ghnetd.example.toml");
 
@@ -828,27 +748,37 @@ mod tests {
         assert!(Config::from_toml("[model]\nname = 3\n").is_err());
     }
 
-    fn cli(args: &[&str]) -> Cli {
-        Cli::try_parse_from(std::iter::once("ghnetd").chain(args.iter().copied())).unwrap()
+    /// `ghnetd ARGS` as the binary loads it: `-c FILE`, then the keys' flags.
+    fn load(args: &[&str]) -> anyhow::Result<Config> {
+        let cmd = Config::augment_args(Command::new("ghnetd").arg(Arg::new("config").short('c')));
+        let argv = std::iter::once("ghnetd").chain(args.iter().copied());
+        let matches = cmd.try_get_matches_from(argv).unwrap();
+        let file = matches.get_one::<String>("config").map(Path::new);
+        Config::load(file, &matches)
+    }
+
+    /// `text` as a config file in a fresh directory (kept while the guard lives).
+    fn config_file(text: &str) -> (tempfile::TempDir, String) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("g.toml");
+        std::fs::write(&path, text).unwrap();
+        let path = path.to_str().unwrap().to_owned();
+        (dir, path)
     }
 
     #[test]
     fn flags_override_file() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("g.toml");
-        std::fs::write(
-            &path,
+        let (_dir, p) = config_file(
             "[sources]\nstatic = [\"a\", \"b\"]\ndiscovery_interval_ms = 300\n[model]\nmax_speed = 80.0\n",
-        )
-        .unwrap();
-        let p = path.to_str().unwrap();
+        );
+        let p = p.as_str();
 
-        let c = Config::from_cli(&cli(&["-c", p])).unwrap();
+        let c = load(&["-c", p]).unwrap();
         assert_eq!(c.sources.static_sources, vec!["a", "b"]);
         assert_eq!(c.sources.discovery_interval_ms, 300);
         assert_eq!(c.model.max_speed, 80.0);
 
-        let c = Config::from_cli(&cli(&[
+        let c = load(&[
             "-c",
             p,
             "--source",
@@ -865,7 +795,7 @@ mod tests {
             "0",
             "--model",
             "paper-s1",
-        ]))
+        ])
         .unwrap();
         assert_eq!(c.sources.static_sources, vec!["x", "y"]);
         assert!(!c.sources.discovery);
@@ -875,16 +805,143 @@ mod tests {
         assert_eq!(c.ipc.service_prefix, "site1/ghnet");
         assert_eq!(c.stats_interval(), None);
         assert_eq!(c.history.max_gap_s, None, "unset: the model's own");
-        let c = Config::from_cli(&cli(&["--history-max-gap-s", "30"])).unwrap();
+        let c = load(&["--history-max-gap-s", "30"]).unwrap();
         assert_eq!(c.history.max_gap_s, Some(30.0));
 
         // No file at all: defaults.
-        assert_eq!(Config::from_cli(&cli(&[])).unwrap(), Config::default());
+        assert_eq!(load(&[]).unwrap(), Config::default());
+    }
+
+    /// Every key of the definition: its flag (`None`: a file key only) and its
+    /// default as TOML (`None`: unset, or an empty table).
+    fn definition() -> BTreeMap<String, (Option<String>, Option<toml::Value>)> {
+        let defaults = toml::Table::try_from(Config::default()).unwrap();
+        let mut keys = BTreeMap::new();
+        for arg in Config::augment_args(Command::new("ghnetd")).get_arguments() {
+            let long = arg.get_long().map(|l| format!("--{l}"));
+            keys.insert(arg.get_id().to_string(), (long, None));
+        }
+        for (section, table) in &defaults {
+            for (key, value) in table.as_table().unwrap() {
+                keys.entry(format!("{section}.{key}"))
+                    .or_insert((None, None))
+                    .1 = Some(value.clone());
+            }
+        }
+        assert!(keys.keys().all(|k| k.contains('.')), "{keys:?}");
+        keys
+    }
+
+    #[test]
+    fn readme_table_names_every_key_with_its_flag_and_default() {
+        let readme = include_str!("../README.md");
+        let section = readme.split("\n## Configuration\n").nth(1).unwrap();
+        let section = section.split("\n## ").next().unwrap();
+        let mut rows = BTreeMap::new();
+        for line in section.lines().filter(|l| l.starts_with("| `")) {
+            let cols: Vec<&str> = line.split(" | ").collect();
+            rows.insert(
+                cols[0].trim_start_matches("| ").trim_matches('`'),
+                (cols[1], cols[2]),
+            );
+        }
+        let keys = definition();
+        assert_eq!(
+            rows.keys().copied().collect::<Vec<_>>(),
+            keys.keys().map(String::as_str).collect::<Vec<_>>(),
+            "README table keys"
+        );
+        for (key, (flag, default)) in &keys {
+            let (flag_col, default_col) = rows[key.as_str()];
+            match flag {
+                Some(f) => assert!(flag_col.contains(&format!("`{f}")), "{key}: {flag_col}"),
+                None => assert_eq!(flag_col, "–", "{key}"),
+            }
+            let shown = match default {
+                Some(toml::Value::String(s)) => format!("`{s}`"),
+                Some(v) => format!("`{v}`"),
+                None if default_col.starts_with("`{}`") => "`{}`".to_owned(),
+                None => "unset".to_owned(),
+            };
+            assert!(
+                default_col.starts_with(&shown),
+                "{key}: {default_col} vs {shown}"
+            );
+        }
+    }
+
+    #[test]
+    fn example_file_names_every_key() {
+        let mut seen = BTreeSet::new();
+        let mut section = String::new();
+        for line in EXAMPLE.lines() {
+            if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
+                section = name.to_owned();
+                continue;
+            }
+            let text = line.trim_start_matches("# ");
+            if let Some(table) = text.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
+                seen.insert(table.to_owned());
+            } else if let Some((key, _)) = text.split_once(" = ") {
+                seen.insert(format!("{section}.{key}"));
+            }
+        }
+        for key in definition().keys() {
+            assert!(seen.contains(key), "{key} missing from ghnetd.example.toml");
+        }
+    }
+
+    #[test]
+    fn clap_and_serde_agree_on_every_default() {
+        assert_eq!(load(&[]).unwrap(), Config::from_toml("").unwrap());
+        let c = Config::default();
+        assert_eq!(
+            c.ipc.max_subscribers,
+            ghnet_client::SERVICE_SETTINGS.max_subscribers
+        );
+        assert_eq!(c.model.name, ghnet_models::DEFAULT_MODEL);
+        assert_eq!(c.zenoh.listen, vec!["tcp/127.0.0.1:7447"]);
+        assert!(c.sources.discovery && c.zenoh.enabled && !c.zenoh.gossip);
+    }
+
+    #[test]
+    fn source_platform_flags_add_to_the_files_table() {
+        let text = "[model]\nplatform = \"car\"\n[model.platforms]\na = \"robot\"\nb = \"car\"\n";
+        let (_dir, p) = config_file(text);
+        let p = p.as_str();
+        let c = load(&[
+            "-c",
+            p,
+            "--source-platform",
+            "b=robot",
+            "--source-platform",
+            "c=auto",
+        ]);
+        let c = c.unwrap();
+        assert_eq!(c.model.platform_of("a"), Some(Platform::Robot));
+        assert_eq!(
+            c.model.platform_of("b"),
+            Some(Platform::Robot),
+            "the flag wins"
+        );
+        assert_eq!(c.model.platform_of("c"), Some(Platform::Auto));
+        assert_eq!(c.model.platform_of("z"), Some(Platform::Car));
+        let c = load(&[
+            "--zenoh",
+            "false",
+            "--discovery",
+            "false",
+            "--max-speed",
+            "70",
+        ])
+        .unwrap();
+        assert!(!c.zenoh.enabled && !c.sources.discovery);
+        assert_eq!(c.model.max_speed, 70.0);
     }
 
     #[test]
     fn missing_file_error_names_the_file() {
-        let err = Config::from_cli(&cli(&["-c", "/nonexistent/ghnetd.toml"])).unwrap_err();
+        let err = load(&["-c", "/nonexistent/ghnetd.toml"]).unwrap_err();
         let msg = format!("{err:#}");
         assert!(msg.contains("/nonexistent/ghnetd.toml"), "{msg}");
         assert!(!msg.contains('\n'), "{msg}");
@@ -972,7 +1029,7 @@ mod tests {
             section.zenoh_config().unwrap().get_json(wait).unwrap(),
             zenoh_default.get_json(wait).unwrap()
         );
-        let c = Config::from_cli(&cli(&[
+        let c = load(&[
             "--zenoh",
             "false",
             "--zenoh-mode",
@@ -981,7 +1038,7 @@ mod tests {
             "tcp/127.0.0.1:0",
             "--zenoh-connect",
             "tcp/127.0.0.1:7448",
-        ]))
+        ])
         .unwrap();
         assert!(!c.zenoh.enabled);
         assert_eq!(c.zenoh.mode, "client");
@@ -991,7 +1048,7 @@ mod tests {
 
     #[test]
     fn ipc_limits_reach_the_client_settings() {
-        let c = Config::from_cli(&cli(&[
+        let c = load(&[
             "--max-subscribers",
             "12",
             "--max-publishers",
@@ -1002,7 +1059,7 @@ mod tests {
             "64",
             "--stale-after-ms",
             "0",
-        ]))
+        ])
         .unwrap();
         let s = *c.ipc_config().unwrap().settings();
         assert_eq!(s, ServiceSettings::with_limits(3, 12, 20, 64));

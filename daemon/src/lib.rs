@@ -3,10 +3,12 @@
 //!
 //! # Layout
 //!
-//! - [`config`] — [`Config`] (TOML sections `ipc`, `sources`, `model`, `history`,
-//!   `stats`, `zenoh`) and
-//!   [`config::Cli`] (clap flags overriding it); validation with one-line errors that
-//!   name the key.
+//! - `config` (private) — [`Config`] (TOML sections `ipc`, `sources`, `model`,
+//!   `history`, `stats`, `zenoh`): each key's type, doc, flag and default on one field,
+//!   read by serde from the file and by clap from the flags; validation with one-line
+//!   errors that name the key. `layering` (private): TOML parse errors and flags laid
+//!   over the file; `host` (private): the host checks validation makes (root
+//!   directory ownership, `/dev/shm` size).
 //! - `answer` (private) — the wire side of a source's samples: [`Counters`], the
 //!   conversion to the sample rules of `ghnet_models::source` (sequence, time,
 //!   validity, resets, repeats: the same in ghnetd and `ghnet infer`), the per-epoch
@@ -90,9 +92,11 @@ use std::sync::Arc;
 use serde::Serialize;
 
 mod answer;
-pub mod config;
+mod config;
 mod discovery;
+mod host;
 mod latency;
+mod layering;
 mod lock;
 mod node;
 mod output;
@@ -105,7 +109,10 @@ mod source;
 mod test_model;
 
 pub use answer::Counters;
-pub use config::Config;
+pub use config::{
+    Config, HistorySection, IpcSection, ModelSection, Platforms, SourcesSection, StatsSection,
+    ZenohSection,
+};
 
 /// Set once to stop [`run`]. Cheap to clone; setting it is async-signal-safe (a
 /// single atomic store), so a signal handler may call [`request`](Self::request).

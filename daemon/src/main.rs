@@ -2,13 +2,38 @@
 //! a shutdown request, and calls [`ghnetd::run`]. Everything else is in the library.
 
 use std::io::IsTerminal;
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::OnceLock;
 
-use clap::Parser;
-use ghnetd::config::Cli;
+use clap::{CommandFactory, FromArgMatches, Parser};
 use ghnetd::{Config, ShutdownFlag};
 use iceoryx2_bb_posix::signal::{FetchableSignal, SignalHandler};
+
+/// The command line: which file, what to do, and every config key as its flag (the
+/// keys' flags, docs and defaults are defined on [`Config`]'s fields).
+#[derive(Debug, Parser)]
+#[command(
+    name = "ghnetd",
+    version,
+    about = "ghnet heading sidecar: answers GNSS velocity samples on iceoryx2 with heading estimates",
+    long_about = "ghnet heading sidecar: reads VelocitySample from <prefix>/<source>/velocity \
+                  and answers each with one HeadingEstimate on <prefix>/<source>/heading.\n\n\
+                  Precedence: built-in defaults < --config file < flags. Logging: RUST_LOG \
+                  (default info, Zenoh's gossip-disabled warning off). SIGINT/SIGTERM: \
+                  answer what is buffered, release iceoryx2 resources, exit 0."
+)]
+struct Cli {
+    /// TOML config file; without one the built-in defaults apply.
+    #[arg(long, short = 'c', env = "GHNETD_CONFIG", value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Print the effective config as TOML and exit.
+    #[arg(long)]
+    print_config: bool,
+    /// The keys; [`Config::load`] reads which of them were given from the matches.
+    #[command(flatten)]
+    keys: Config,
+}
 
 /// The flag the signal handler sets; a static because handlers take no context.
 static SHUTDOWN: OnceLock<ShutdownFlag> = OnceLock::new();
@@ -30,8 +55,9 @@ fn main() -> ExitCode {
     ghnet_client::iceoryx2::prelude::set_log_level_from_env_or(
         ghnet_client::iceoryx2::prelude::LogLevel::Error,
     );
-    let cli = Cli::parse();
-    let config = match Config::from_cli(&cli) {
+    let matches = Cli::command().get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let config = match Config::load(cli.config.as_deref(), &matches) {
         Ok(c) => c,
         Err(e) => {
             eprintln!("error: {e:#}");

@@ -13,10 +13,11 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use ghnet_client::IpcConfig;
+use ghnet_client::{IpcConfig, OpenError, Setting};
 use tracing::{info, warn};
 
 use crate::config::Config;
+use crate::host::{fs_size, shm_free, SHM_DIR};
 
 /// Descriptors one source costs, measured (`/proc/self/fd` before and after opening
 /// sources with Zenoh on): about 17. Used until ghnetd has measured its own sources.
@@ -26,10 +27,6 @@ const FDS_PER_SOURCE: u64 = 17;
 /// accept threads (Zenoh 1.10 panics in an accept thread at `EMFILE`), a discovery
 /// listing (opens every service's static config), dead-node cleanup, log files.
 const FDS_RESERVE: u64 = 64;
-
-/// Where POSIX shared memory lives on Linux; iceoryx2 0.10 creates its segments there
-/// (`shm_open`), whatever its root path.
-pub(crate) const SHM_DIR: &str = "/dev/shm";
 
 /// Shared memory kept free beyond what a source needs: other processes (publishers,
 /// consumers) create their segments there too, and running it to the last page is
@@ -66,7 +63,7 @@ impl Budget {
         let budget = Budget {
             fd_limit,
             fds_per_source: FDS_PER_SOURCE,
-            shm_per_source: shm_per_source(config),
+            shm_per_source: config.ipc.shm_per_source(),
             shm_prefix: ipc.iceoryx2_config().global.prefix.to_string(),
             learned: false,
         };
@@ -130,16 +127,17 @@ impl Budget {
         }
     }
 
-    /// The reason to report for a source that failed to open: the error, preceded
-    /// by the resource that is short if one is (iceoryx2 reports `EMFILE` as an
-    /// opaque internal failure).
+    /// The reason to report for a source that failed to open: the error (a limit
+    /// named by its `ipc.*` key), preceded by the resource that is short if one is
+    /// (iceoryx2 reports `EMFILE` as an opaque internal failure).
     pub(crate) fn explain(&self, e: anyhow::Error) -> String {
+        let e = in_config_keys(&e);
         match self.shortage() {
-            Some(short) => format!("{short}: {e:#}"),
+            Some(short) => format!("{short}: {e}"),
             None if open_fds() + 2 * self.fds_per_source + FDS_RESERVE > self.fd_limit => {
-                format!("file descriptors (limit {}): {e:#}", self.fd_limit)
+                format!("file descriptors (limit {}): {e}", self.fd_limit)
             }
-            None => format!("{e:#}"),
+            None => e,
         }
     }
 
@@ -160,6 +158,29 @@ impl Budget {
         self.learned = true;
         self.fds_per_source = self.fds_per_source.max(now.fds.saturating_sub(before.fds));
         self.shm_per_source = self.shm_per_source.max(now.shm.saturating_sub(before.shm));
+    }
+}
+
+/// `e` as `{e:#}` prints it, with a client limit error naming ghnetd's `ipc.*` key to
+/// raise instead of the client's `ServiceSettings` field: the operator sets the key.
+fn in_config_keys(e: &anyhow::Error) -> String {
+    let causes: Vec<String> = e
+        .chain()
+        .map(|cause| match cause.downcast_ref::<OpenError>() {
+            Some(open) => open.naming(|s| ipc_key(s).to_owned()),
+            None => cause.to_string(),
+        })
+        .collect();
+    causes.join(": ")
+}
+
+/// ghnetd's key for a client [`Setting`]: the `[ipc]` key that sets it.
+fn ipc_key(setting: Setting) -> &'static str {
+    match setting {
+        Setting::MaxPublishers => "ipc.max_publishers",
+        Setting::MaxSubscribers => "ipc.max_subscribers",
+        Setting::MaxNodes => "ipc.max_nodes",
+        Setting::SubscriberBufferSize => "ipc.subscriber_buffer",
     }
 }
 
@@ -202,30 +223,6 @@ fn open_fds() -> u64 {
     std::fs::read_dir("/proc/self/fd").map_or(0, |d| d.count() as u64)
 }
 
-/// Bytes free for an unprivileged writer on the filesystem of `dir`.
-pub(crate) fn shm_free(dir: &Path) -> Option<u64> {
-    fs_space(dir).map(|(free, _)| free)
-}
-
-/// Size of the filesystem of `dir`, bytes.
-pub(crate) fn fs_size(dir: &Path) -> Option<u64> {
-    fs_space(dir).map(|(_, size)| size)
-}
-
-/// Bytes free for an unprivileged writer and the size, of the filesystem of `dir`
-/// (statvfs(3)); `None` when it cannot be asked (no such directory).
-fn fs_space(dir: &Path) -> Option<(u64, u64)> {
-    use std::os::unix::ffi::OsStrExt;
-    let path = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
-    // SAFETY: statvfs writes only into `st`; `path` is a valid C string.
-    let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
-    if unsafe { libc::statvfs(path.as_ptr(), &mut st) } != 0 {
-        return None;
-    }
-    let block = st.f_frsize as u64;
-    Some((st.f_bavail as u64 * block, st.f_blocks as u64 * block))
-}
-
 /// Bytes of the files whose name starts with `prefix` in `dir` (their sizes, not the
 /// pages touched: a segment can grow to its size at any time).
 fn shm_used(dir: &Path, prefix: &str) -> u64 {
@@ -238,36 +235,6 @@ fn shm_used(dir: &Path, prefix: &str) -> u64 {
         .filter_map(|e| e.metadata().ok())
         .map(|m| m.len())
         .sum()
-}
-
-/// Shared memory one source's services take when ghnetd creates all of them (its
-/// four services' management segments, the heading data segment, the connections),
-/// from the `ipc.*` settings. Calibrated against the sizes of the `/dev/shm` files
-/// made for one source (see [`shm_need`]).
-pub(crate) fn shm_per_source(config: &Config) -> u64 {
-    let i = &config.ipc;
-    shm_need(
-        i.max_publishers as u64,
-        i.max_subscribers as u64,
-        i.max_nodes as u64,
-        i.subscriber_buffer as u64,
-    )
-}
-
-/// [`shm_per_source`] from the numbers. Fitted to the `/dev/shm` files iceoryx2 0.10
-/// made for one source as its settings varied (ghnetd alone, default settings:
-/// 133 KB in 6 files; 16 subscriber slots × 130 samples of 116 bytes each are most of
-/// it), plus the connection segments consumers and the velocity publisher add.
-pub(crate) fn shm_need(publishers: u64, subscribers: u64, nodes: u64, buffer: u64) -> u64 {
-    const PAGE: u64 = 4096;
-    // Four services' dynamic configs grow with the ports and the nodes.
-    let dynamic = 4 * (512 + 140 * (publishers + subscribers) + 32 * nodes);
-    let event = PAGE;
-    // The heading data segment: every subscriber's buffer plus 2 borrowed samples.
-    let data = 116 * subscribers * (buffer + 2) + PAGE;
-    // One connection per subscriber of the heading service, one for the velocity one.
-    let connections = (subscribers + 1) * (16 * buffer + PAGE);
-    dynamic + event + data + connections
 }
 
 /// Backoff of a source that could not be opened: tried again after 0.1 s, then
@@ -314,25 +281,6 @@ impl Retry {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Sizes of the `/dev/shm` files ghnetd made for one static source (no
-    /// publisher, no consumer), measured with `ls -l /dev/shm`.
-    #[test]
-    fn shm_need_covers_what_one_source_was_measured_to_take() {
-        for ((p, s, n, b), measured) in [
-            ((4, 8, 16, 128), 133_073),
-            ((4, 64, 16, 128), 1_008_017),
-            ((4, 8, 16, 4096), 3_815_377),
-            ((4, 8, 256, 128), 163_793),
-            ((64, 8, 16, 128), 166_673),
-        ] {
-            let need = shm_need(p, s, n, b);
-            assert!(
-                need >= measured && need < 2 * measured,
-                "{p} {s} {n} {b}: {need} vs {measured}"
-            );
-        }
-    }
 
     #[test]
     fn backoff_doubles_to_the_cap() {

@@ -327,7 +327,7 @@ fn raw_server(ipc: &IpcConfig, endpoint: &str, stop: &AtomicBool) {
         .create::<ipc::Service>()
         .unwrap();
     // ghnetd's Zenoh config (its transmit queue included), on the raw endpoint.
-    let section = ghnetd::config::ZenohSection {
+    let section = ghnetd::ZenohSection {
         listen: vec![endpoint.to_owned()],
         ..Default::default()
     };

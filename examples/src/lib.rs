@@ -15,6 +15,8 @@
 //!   [`CarDrive`] — the demo's car that drives, stops and backs up, with its truth.
 //! - [`now_ns`], [`latency_since`] — wall-clock timestamps in the unit the wire wants,
 //!   and a heading's age; [`log_to_stderr`] — tracing for the demo's daemon.
+//! - [`PrivateNamespace`] — the demo's `--isolated`: a private iceoryx2 namespace
+//!   from the client's public `IpcConfig::isolated`, removed on drop.
 //! - [`table`] — the live heading table of `subscriber`, `zenoh_subscriber` and
 //!   `demo`, a list of columns (add one to show another estimate beside ghnet's);
 //!   [`TablePrinter`] prints it from a thread of its own.
@@ -308,6 +310,54 @@ impl CarDrive {
             })
             .collect();
         (!stretch.is_empty()).then_some(stretch)
+    }
+}
+
+/// A private iceoryx2 namespace for one run (the demo's `--isolated`), so the demo
+/// never meets a running ghnetd: its own `/dev/shm` file prefix and root directory,
+/// both named after this process, removed on drop. Built on the client's public
+/// [`IpcConfig::isolated`]; ghnetd takes the same two values as
+/// `ipc.iceoryx2_global_prefix` and `ipc.iceoryx2_root_path`.
+pub struct PrivateNamespace {
+    /// The iceoryx2 global prefix (file-name prefix in `/dev/shm`).
+    pub global_prefix: String,
+    /// The iceoryx2 root directory (node and service records).
+    pub root_path: std::path::PathBuf,
+}
+
+impl PrivateNamespace {
+    /// A namespace named `name` plus this process's id.
+    pub fn new(name: &str) -> Self {
+        let pid = std::process::id();
+        Self {
+            global_prefix: format!("{name}{pid}_"),
+            root_path: std::env::temp_dir().join(format!("ghnet-{name}-{pid}")),
+        }
+    }
+
+    /// The client side: the default service prefix in this namespace.
+    pub fn ipc(&self) -> anyhow::Result<IpcConfig> {
+        Ok(IpcConfig::isolated(&self.global_prefix, &self.root_path)?)
+    }
+}
+
+impl Drop for PrivateNamespace {
+    fn drop(&mut self) {
+        // iceoryx2 keeps a small management segment per prefix on purpose.
+        let _ = std::fs::remove_dir_all(&self.root_path);
+        for entry in std::fs::read_dir("/dev/shm")
+            .into_iter()
+            .flatten()
+            .flatten()
+        {
+            if entry
+                .file_name()
+                .to_string_lossy()
+                .starts_with(&self.global_prefix)
+            {
+                let _ = std::fs::remove_file(entry.path());
+            }
+        }
     }
 }
 

@@ -236,7 +236,7 @@ fn the_subscriber_over_the_limit_gets_a_message_naming_the_key() {
     assert_eq!(
         err.to_string(),
         format!(
-            "service `ghnet/veh/heading`: all {max} subscriber slots in use (ipc.max_subscribers)"
+            "service `ghnet/veh/heading`: all {max} subscriber slots in use (ServiceSettings::max_subscribers)"
         )
     );
 
@@ -250,7 +250,8 @@ fn the_subscriber_over_the_limit_gets_a_message_naming_the_key() {
         .expect("mismatch");
     let msg = err.to_string();
     assert!(
-        msg.contains("fewer subscriber slots than the 8") && msg.ends_with("(ipc.max_subscribers)"),
+        msg.contains("fewer subscriber slots than the 8")
+            && msg.ends_with("(ServiceSettings::max_subscribers)"),
         "{msg}"
     );
 }

@@ -305,21 +305,20 @@ fn rclpy_hears_every_answer_as_imu_with_the_status_rules_and_diagnostics() {
     let mut second = Feed::new(&daemon, SECOND.0);
 
     let log = ns.scratch_dir("ros2").join("bridge.log");
-    let bin = find_binary("ghnet-ros2").expect("ghnet-ros2 is built by cargo test --workspace");
-    let mut bridge = Proc::spawn(
-        Command::new("ip")
-            .args(["netns", "exec", host.name()])
-            .arg(bin)
-            .args(["--source", FRONT.0, "--source", SECOND.0])
-            .args(["--domain-id", DOMAIN_ID, "--frame-id", FRAME_ID])
-            .arg("--iceoryx2-global-prefix")
-            .arg(ns.global_prefix())
-            .arg("--iceoryx2-root-path")
-            .arg(ns.root_path())
-            .env_remove("ROS_DOMAIN_ID")
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(&log).unwrap()),
+    let mut bridge = spawn_bridge(
+        &ns,
+        &host,
+        &log,
+        &[
+            "--source",
+            FRONT.0,
+            "--source",
+            SECOND.0,
+            "--domain-id",
+            DOMAIN_ID,
+            "--frame-id",
+            FRAME_ID,
+        ],
     );
     let mut listener = Proc::spawn(
         Command::new("ip")
@@ -505,10 +504,7 @@ fn rmw_zenoh_wire_is_what_rosbags_reads_and_a_late_router_is_waited_for() {
                 "4",
             ])
             .args(["--source", "gnss-0", "--frame-id", FRAME_ID])
-            .arg("--iceoryx2-global-prefix")
-            .arg(ns.global_prefix())
-            .arg("--iceoryx2-root-path")
-            .arg(ns.root_path())
+            .args(ns.iceoryx2_flags())
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(std::fs::File::create(&log).unwrap()),
@@ -698,10 +694,7 @@ fn spawn_bridge(
             .args(["netns", "exec", host.name()])
             .arg(bin)
             .args(args)
-            .arg("--iceoryx2-global-prefix")
-            .arg(ns.global_prefix())
-            .arg("--iceoryx2-root-path")
-            .arg(ns.root_path())
+            .args(ns.iceoryx2_flags())
             .env_remove("ROS_DOMAIN_ID")
             .stdin(Stdio::null())
             .stdout(Stdio::null())

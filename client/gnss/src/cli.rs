@@ -1,10 +1,10 @@
 //! The command line. The doc comments below are `ghnet-gnss --help`.
 
-use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
 use clap::Parser;
+use ghnet_client::cli::IpcArgs;
 use ghnet_client::IpcConfig;
 use ghnet_receivers::Format;
 
@@ -54,18 +54,9 @@ pub struct Args {
     #[arg(long)]
     pub print: bool,
 
-    /// Service prefix; must match ghnetd's ipc.service_prefix.
-    #[arg(long, default_value = ghnet_client::DEFAULT_PREFIX, value_name = "PREFIX")]
-    pub service_prefix: String,
-
-    /// iceoryx2 shared-memory file prefix, for an isolated ghnetd (its
-    /// ipc.iceoryx2_global_prefix).
-    #[arg(long, value_name = "PREFIX")]
-    pub iceoryx2_global_prefix: Option<String>,
-
-    /// iceoryx2 root directory, for an isolated ghnetd (its ipc.iceoryx2_root_path).
-    #[arg(long, value_name = "DIR")]
-    pub iceoryx2_root_path: Option<PathBuf>,
+    /// Where ghnetd's services are (`--service-prefix`, the iceoryx2 overrides).
+    #[command(flatten)]
+    pub ipc: IpcArgs,
 
     /// Seconds a replay waits for ghnetd to subscribe before sending anyway.
     #[arg(long, default_value_t = 30.0, value_name = "SECONDS")]
@@ -119,13 +110,7 @@ impl Args {
     }
 
     fn ipc(&self) -> anyhow::Result<IpcConfig> {
-        IpcConfig::new(&self.service_prefix)
-            .context("--service-prefix")?
-            .with_iceoryx2_overrides(
-                self.iceoryx2_global_prefix.as_deref(),
-                self.iceoryx2_root_path.clone(),
-            )
-            .context("--iceoryx2-global-prefix / --iceoryx2-root-path")
+        Ok(self.ipc.ipc()?)
     }
 }
 

@@ -1,9 +1,8 @@
 //! The command line. The doc comments below are `ghnet-ros2 --help`.
 
-use std::path::PathBuf;
-
 use anyhow::Context;
 use clap::Parser;
+use ghnet_client::cli::IpcArgs;
 use ghnet_client::IpcConfig;
 
 use crate::names::{check_domain_id, check_frame_id, TopicMap};
@@ -13,7 +12,8 @@ use crate::{Config, Rmw};
 /// /ghnet/<source>/heading (node `ghnet`), and diagnostic_msgs/msg/DiagnosticArray
 /// on /diagnostics once a second. Source names that are not ROS names map by a
 /// fixed rule ('-' → '_', runs of '_' → one, a leading digit gets "s_").
-/// Stop with Ctrl-C (SIGINT) or SIGTERM.
+/// Stop with Ctrl-C (SIGINT) or SIGTERM. --service-prefix does not change the ROS
+/// topics.
 #[derive(Debug, Parser)]
 #[command(name = "ghnet-ros2", version)]
 pub struct Args {
@@ -39,19 +39,9 @@ pub struct Args {
     #[arg(long, default_value = "tcp/localhost:7447", value_name = "ENDPOINT")]
     pub zenoh_router: String,
 
-    /// Service prefix; must match ghnetd's ipc.service_prefix. The ROS topics do
-    /// not change with it.
-    #[arg(long, default_value = ghnet_client::DEFAULT_PREFIX, value_name = "PREFIX")]
-    pub service_prefix: String,
-
-    /// iceoryx2 shared-memory file prefix, for an isolated ghnetd (its
-    /// ipc.iceoryx2_global_prefix).
-    #[arg(long, value_name = "PREFIX")]
-    pub iceoryx2_global_prefix: Option<String>,
-
-    /// iceoryx2 root directory, for an isolated ghnetd (its ipc.iceoryx2_root_path).
-    #[arg(long, value_name = "DIR")]
-    pub iceoryx2_root_path: Option<PathBuf>,
+    /// Where ghnetd's services are (`--service-prefix`, the iceoryx2 overrides).
+    #[command(flatten)]
+    pub ipc: IpcArgs,
 }
 
 impl Args {
@@ -74,13 +64,7 @@ impl Args {
     }
 
     fn ipc(&self) -> anyhow::Result<IpcConfig> {
-        IpcConfig::new(&self.service_prefix)
-            .context("--service-prefix")?
-            .with_iceoryx2_overrides(
-                self.iceoryx2_global_prefix.as_deref(),
-                self.iceoryx2_root_path.clone(),
-            )
-            .context("--iceoryx2-global-prefix / --iceoryx2-root-path")
+        Ok(self.ipc.ipc()?)
     }
 }
 

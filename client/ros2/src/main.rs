@@ -1,7 +1,6 @@
 //! `ghnet-ros2` binary: parses the command line, sets up logging, turns
 //! SIGINT/SIGTERM into a stop request and calls [`ghnet_ros2::run`].
 
-use std::cell::Cell;
 use std::process::ExitCode;
 
 use clap::Parser;
@@ -32,16 +31,9 @@ fn main() -> ExitCode {
         }
     };
     // iceoryx2 captures SIGINT/SIGTERM once it is in use, so Ctrl-C only sets a flag:
-    // the first call installs the handlers now. `termination_requested` clears the
-    // flag it reads; latch it.
-    let stopped = Cell::new(ghnet_client::termination_requested());
-    let stop = || {
-        if !stopped.get() && ghnet_client::termination_requested() {
-            tracing::info!("stop requested");
-            stopped.set(true);
-        }
-        stopped.get()
-    };
+    // the latch installs the handlers now, before anything blocks.
+    let latch = ghnet_client::StopLatch::new();
+    let stop = || latch.poll(|| tracing::info!("stop requested"));
     match ghnet_ros2::run(&config, &stop) {
         Ok(_) => ExitCode::SUCCESS,
         Err(e) => {

@@ -13,10 +13,10 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Parser;
-use ghnet_client::{flags, testing::TestNamespace, IpcConfig, VelocitySample};
+use ghnet_client::{flags, IpcConfig, VelocitySample};
 use ghnet_client::{HeadingEstimate, HeadingStatus, HeadingSubscriber, VelocityPublisher};
 use ghnet_examples::{log_to_stderr, now_ns, pacing_node, wait_for_subscriber};
-use ghnet_examples::{CarDrive, Pacer};
+use ghnet_examples::{CarDrive, Pacer, PrivateNamespace};
 use ghnet_lab::drive::DriveSample;
 use ghnet_models::stream::{Epoch, StreamPredictor};
 use ghnet_models::Model;
@@ -26,18 +26,18 @@ const SOURCE: &str = "demo";
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     log_to_stderr(); // the daemon's log lines; the table goes to stdout
-    let ns = args.isolated.then(|| TestNamespace::new("demo")); // removed at exit
+    let ns = args.isolated.then(|| PrivateNamespace::new("demo")); // removed at exit
     let ipc = ns
         .as_ref()
-        .map_or_else(IpcConfig::default, TestNamespace::ipc);
+        .map_or(Ok(IpcConfig::default()), PrivateNamespace::ipc)?;
 
     // 1. The daemon on its own thread, serving our one source from the start. No
     // Zenoh, so the demo never competes with a running ghnetd for its port.
     let mut config = ghnetd::Config::default();
     (config.model.name, config.zenoh.enabled) = (args.model.clone(), false);
     (config.sources.static_sources, config.sources.discovery) = (vec![SOURCE.into()], false);
-    config.ipc.iceoryx2_global_prefix = ns.as_ref().map(|ns| ns.global_prefix().into());
-    config.ipc.iceoryx2_root_path = ns.as_ref().map(|ns| ns.root_path().into());
+    config.ipc.iceoryx2_global_prefix = ns.as_ref().map(|ns| ns.global_prefix.clone());
+    config.ipc.iceoryx2_root_path = ns.as_ref().map(|ns| ns.root_path.clone());
     let shutdown = ghnetd::ShutdownFlag::new();
     let stop = shutdown.clone();
     let daemon = std::thread::spawn(move || ghnetd::run(config, stop));

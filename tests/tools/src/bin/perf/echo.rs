@@ -52,7 +52,7 @@ pub fn run(args: EchoArgs) -> anyhow::Result<()> {
             let mut config = ghnet_client::peer_config(&listen, &connect)
                 .map_err(|e| anyhow::anyhow!("zenoh config: {e}"))?;
             // ghnetd's transmit queue, so the two lose (or not) alike.
-            for (key, value) in ghnetd::config::ZENOH_TX_DEFAULTS {
+            for (key, value) in ghnet_client::ZENOH_TX_QUEUE {
                 config
                     .insert_json5(key, value)
                     .map_err(|e| anyhow::anyhow!("zenoh config {key}: {e}"))?;
