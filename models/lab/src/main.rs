@@ -15,7 +15,7 @@ use ghnet_lab::make::{self, Recipe};
 use ghnet_lab::sim::{self, RealisticParams, S1Params};
 use ghnet_lab::{receiver_log, replay};
 use ghnet_models::simd::Kernel;
-use ghnet_models::{Model, Platform, Predictor, DEFAULT_MODEL};
+use ghnet_models::{Model, Platform, DEFAULT_MODEL};
 
 #[derive(Parser)]
 #[command(
@@ -451,12 +451,11 @@ fn infer(
     let out = File::create(output)
         .with_context(|| format!("cannot create output {}", output.display()))?;
     let out = BufWriter::with_capacity(1 << 16, out);
-    let s = if model.is_stateful() {
-        replay::run(&mut replay::Streams::new(model.clone()), inp, out)
-    } else {
-        replay::run(&mut Predictor::new(model.clone()), inp, out)
-    }
-    .with_context(|| format!("{}", input.display()))?;
+    // Every model through ghnetd's per-source rules, so a log answers here as it
+    // would live (a per-epoch model has no history, but time going backwards is
+    // `invalid` for it too).
+    let s = replay::run(&mut replay::Streams::new(model.clone()), inp, out)
+        .with_context(|| format!("{}", input.display()))?;
     if let Some(c) = &receiver {
         eprintln!("{} log: {}", c.format, c.stats);
     }

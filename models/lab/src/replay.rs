@@ -9,16 +9,16 @@
 //! `invalid` and empty heading fields; it never stops the file. Rows are read, answered
 //! and written in blocks, so memory does not grow with the file.
 //!
-//! Stateful models (the temporal default, `kf`; [`Streams`]) answer each track through
-//! the sample rules ghnetd applies to a source (`ghnet_models::source`, one
-//! `SourceStream` per track), so a log replayed here and the same samples published
-//! into ghnetd get the same answers: rows in file order, one history per value of a
-//! `track` column (all rows share one without it), time from `t_s` (seconds) or
-//! `timestamp_ns`. A row whose time is earlier than the previous row's of its track is
-//! `invalid` and clears the history; a time step longer than the model's gap limit
-//! clears it too. Without a time column rows are taken as one second apart. A row whose
-//! time does not parse is `invalid`. Per-epoch models ignore all of this and run
-//! through the batch path.
+//! `ghnet infer` answers each track through the sample rules ghnetd applies to a
+//! source ([`Streams`]: `ghnet_models::source`, one `SourceStream` per track), so a log
+//! replayed here and the same samples published into ghnetd get the same answers: rows
+//! in file order, one stream per value of a `track` column (all rows share one without
+//! it), time from `t_s` (seconds) or `timestamp_ns`. A row whose time is earlier than
+//! the previous row's of its track is `invalid` and clears the track's history (for a
+//! stateful model); a time step longer than the model's gap limit clears it too.
+//! Without a time column rows are taken as one second apart. A row whose time does not
+//! parse is `invalid`. The per-epoch batch path ([`Answer`] for `Predictor`, no
+//! per-source rules) is there for callers that want raw answers in bulk.
 //!
 //! # Malformed input
 //!
@@ -35,7 +35,7 @@
 //! | a row with fewer or more fields than the header | `invalid`; padded with empty fields or cut to the header's width, so every output row lines up with the output header |
 //! | non-numeric, empty, `NaN`, `inf`, non-UTF-8 velocity fields | `invalid` |
 //! | a velocity over the policy's `max_speed` (100 m/s) | `invalid` |
-//! | a time earlier than the previous row's of the track (stateful models) | `invalid`; the track's history is cleared |
+//! | a time earlier than the previous row's of the track | `invalid`; the track's history (stateful models) is cleared |
 //! | `speed_acc` non-numeric, empty, NaN, infinite or negative | unknown accuracy, answered with the network's σ (logs often write -1 for "not available"; the live wire has NaN for that and ghnetd rejects a negative one) |
 //! | a huge line (megabytes in one field) | answered like any row (`invalid` if it is a velocity field); memory grows with the longest row only |
 //! | an unterminated quote | the field runs to the end of the file: one more (likely `invalid`) row |
@@ -133,7 +133,7 @@ pub trait Answer {
     fn answer(&mut self, rows: &Rows, out: &mut [Prediction]);
 }
 
-/// Per-epoch models: the batch path, no history.
+/// Per-epoch models in bulk: the batch path, no per-source rules (no time checks).
 impl Answer for Predictor {
     fn answer(&mut self, rows: &Rows, out: &mut [Prediction]) {
         self.predict_batch_with_accuracy(&rows.v_north, &rows.v_east, &rows.speed_acc, out);
