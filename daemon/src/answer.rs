@@ -1,11 +1,11 @@
 //! The wire side of a source's samples: [`Counters`], the conversion between the
-//! wire and the rules of `ghnet_models::source` (which decide what happens to each
+//! wire and the rules of `ghnet_inference::source` (which decide what happens to each
 //! sample, the same in ghnetd and `ghnet infer`), the per-epoch batch path and the
 //! `Stale` message. No IPC: kept apart from the event loop so it is tested directly,
 //! and so the hot path is visibly allocation-free.
 
 use ghnet_client::{flags, HeadingEstimate, HeadingStatus, VelocitySample, MODEL_NAME_LEN};
-use ghnet_models::{
+use ghnet_inference::{
     Admission, Prediction, Predictor, Runner, Sample, SampleCounts, SourceStream, Status,
 };
 use serde::Serialize;
@@ -565,7 +565,7 @@ mod tests {
     mod stateful {
         use crate::answer::{Counters, ModelTag, Tracker};
         use ghnet_client::{HeadingEstimate, HeadingStatus, VelocitySample};
-        use ghnet_models::{Model, Runner, StatusPolicy};
+        use ghnet_inference::{Model, Runner, StatusPolicy};
         use std::sync::Arc;
 
         fn setup(model: &str) -> (Runner, Tracker, ModelTag) {

@@ -21,7 +21,7 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use clap::{ArgAction, ArgMatches, FromArgMatches};
 use ghnet_client::{names, IpcConfig, ServiceSettings, SERVICE_SETTINGS};
-use ghnet_models::Platform;
+use ghnet_inference::Platform;
 use serde::{Deserialize, Serialize};
 
 use crate::{host, layering};
@@ -259,21 +259,21 @@ pub struct ModelSection {
     /// Built-in: `ghnet-epoch`, `ghnet-temporal`, `kf`, `paper-s1`; a path is
     /// relative to the working directory.
     #[arg(id = "model.name", long = "model", value_name = "NAME|PATH",
-          default_value_t = ghnet_models::DEFAULT_MODEL.to_owned())]
+          default_value_t = ghnet_inference::DEFAULT_MODEL.to_owned())]
     pub name: String,
     /// model.stationary_speed (m/s): below this horizontal speed the status is
     /// `Stationary`.
     #[arg(id = "model.stationary_speed", long = "stationary-speed", value_name = "M_PER_S",
-          default_value_t = f32_to_f64(ghnet_models::StatusPolicy::default().stationary_speed))]
+          default_value_t = f32_to_f64(ghnet_inference::StatusPolicy::default().stationary_speed))]
     pub stationary_speed: f64,
     /// model.max_std_deg (deg): above this heading σ the status is `LowSpeed`.
     #[arg(id = "model.max_std_deg", long = "max-std-deg", value_name = "DEG",
-          default_value_t = f32_to_f64(ghnet_models::StatusPolicy::default().max_std_deg))]
+          default_value_t = f32_to_f64(ghnet_inference::StatusPolicy::default().max_std_deg))]
     pub max_std_deg: f64,
     /// model.max_speed (m/s): above this speed the input is `InvalidInput` (a
     /// receiver glitch, not a vehicle).
     #[arg(id = "model.max_speed", long = "max-speed", value_name = "M_PER_S",
-          default_value_t = f32_to_f64(ghnet_models::StatusPolicy::default().max_speed))]
+          default_value_t = f32_to_f64(ghnet_inference::StatusPolicy::default().max_speed))]
     pub max_speed: f64,
     /// model.platform: auto, car or robot (every source without an override).
     ///
@@ -624,8 +624,8 @@ impl Config {
     }
 
     /// The model's status thresholds.
-    pub fn status_policy(&self) -> ghnet_models::StatusPolicy {
-        ghnet_models::StatusPolicy {
+    pub fn status_policy(&self) -> ghnet_inference::StatusPolicy {
+        ghnet_inference::StatusPolicy {
             stationary_speed: self.model.stationary_speed as f32,
             max_std_deg: self.model.max_std_deg as f32,
             max_speed: self.model.max_speed as f32,
@@ -899,7 +899,7 @@ mod tests {
             c.ipc.max_subscribers,
             ghnet_client::SERVICE_SETTINGS.max_subscribers
         );
-        assert_eq!(c.model.name, ghnet_models::DEFAULT_MODEL);
+        assert_eq!(c.model.name, ghnet_inference::DEFAULT_MODEL);
         assert_eq!(c.zenoh.listen, vec!["tcp/127.0.0.1:7447"]);
         assert!(c.sources.discovery && c.zenoh.enabled && !c.zenoh.gossip);
     }
@@ -1080,7 +1080,7 @@ mod tests {
     fn policy_matches_model_defaults() {
         assert_eq!(
             Config::default().status_policy(),
-            ghnet_models::StatusPolicy::default()
+            ghnet_inference::StatusPolicy::default()
         );
     }
 }

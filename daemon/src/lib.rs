@@ -10,9 +10,9 @@
 //!   over the file; `host` (private): the host checks validation makes (root
 //!   directory ownership, `/dev/shm` size).
 //! - `answer` (private) — the wire side of a source's samples: [`Counters`], the
-//!   conversion to the sample rules of `ghnet_models::source` (sequence, time,
+//!   conversion to the sample rules of `ghnet_inference::source` (sequence, time,
 //!   validity, resets, repeats: the same in ghnetd and `ghnet infer`), the per-epoch
-//!   batch path, the `Stale` message. The model runs through `ghnet_models::Runner`.
+//!   batch path, the `Stale` message. The model runs through `ghnet_inference::Runner`.
 //! - `lock` (private) — one ghnetd per service prefix and iceoryx2 namespace: an
 //!   exclusive lock file holding the pid, released by the kernel when its holder
 //!   dies (so `kill -9` leaves nothing to clean up).

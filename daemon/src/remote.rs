@@ -31,7 +31,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use anyhow::Context;
 use ghnet_client::zenoh::{self, Wait};
 use ghnet_client::{encode_zenoh, HeadingEstimate, IpcConfig};
-use ghnet_models::{Model, ModelMeta};
+use ghnet_inference::{Model, ModelMeta};
 use serde::Serialize;
 use tracing::info;
 

@@ -27,7 +27,7 @@ use ghnet_client::iceoryx2::config::Config as IoxConfig;
 use ghnet_client::iceoryx2::prelude::*;
 use ghnet_client::iceoryx2::waitset::WaitSetGuard;
 use ghnet_client::{HeadingEstimate, IpcConfig, SERVICE_SETTINGS};
-use ghnet_models::{Model, Runner, Staged};
+use ghnet_inference::{Model, Runner, Staged};
 use tracing::{debug, info, warn};
 
 use crate::answer::{estimate, sample, Batch, Counters, ModelTag};
@@ -394,7 +394,7 @@ impl Daemon {
         for i in 0..n {
             let (t0, f) = (Instant::now(), wake.owner[i]);
             let s = &batch.samples[i];
-            let answer = states[f].answer(s, &mut self.runner, &self.tag);
+            let answer = states[f].tracker.answer(s, &mut self.runner, &self.tag);
             wake.answered[f] |= ports[f].deliver(&mut states[f], answer, t0, Burst::of(i, n));
         }
     }

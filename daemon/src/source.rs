@@ -8,13 +8,11 @@
 use std::time::{Duration, Instant};
 
 use ghnet_client::iceoryx2::prelude::*;
-use ghnet_client::{
-    HeadingEstimate, HeadingPublisher, IpcConfig, VelocitySample, VelocitySubscriber,
-};
-use ghnet_models::{Runner, SourceStream};
+use ghnet_client::{HeadingEstimate, HeadingPublisher, IpcConfig, VelocitySubscriber};
+use ghnet_inference::SourceStream;
 use tracing::{debug, info, warn};
 
-use crate::answer::{stale_message, Batch, Counters, ModelTag, Tracker};
+use crate::answer::{stale_message, Batch, Counters, Tracker};
 use crate::latency::LatencyRing;
 use crate::output::{Burst, HeadingOutput};
 use crate::remote::{SourceView, ZenohSide};
@@ -106,17 +104,6 @@ impl State {
             last: self.last,
             latency: &self.latency,
         }
-    }
-
-    /// Books `s` and answers it with `runner`, through this source's history for a
-    /// stateful model. `processing_ns` is left at 0.
-    pub(crate) fn answer(
-        &mut self,
-        s: &VelocitySample,
-        runner: &mut Runner,
-        tag: &ModelTag,
-    ) -> HeadingEstimate {
-        self.tracker.answer(s, runner, tag)
     }
 }
 

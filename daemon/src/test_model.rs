@@ -3,7 +3,7 @@
 //! only model-independent facts and accept `Ok` or `LowSpeed` for valid input.
 //! `paper-s1` is the smaller built-in; `tests/e2e.rs` uses it too.
 
-use ghnet_models::Model;
+use ghnet_inference::Model;
 
 /// Built-in model used by the daemon's tests.
 pub(crate) const TEST_MODEL: &str = "paper-s1";

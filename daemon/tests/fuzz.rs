@@ -3,8 +3,8 @@
 //!
 //! - the config TOML parser and validation: arbitrary text and arbitrary key/value
 //!   trees near the real schema give `Ok` or a one-line error, never a panic;
-//! - the sample rules ghnetd runs per source ([`ghnet_models::SourceStream`] through
-//!   [`ghnet_models::Runner`], the stateful default model): arbitrary bit patterns in
+//! - the sample rules ghnetd runs per source ([`ghnet_inference::SourceStream`] through
+//!   [`ghnet_inference::Runner`], the stateful default model): arbitrary bit patterns in
 //!   every `VelocitySample` field give exactly one answer with a known status, and
 //!   counts that agree with a reference count (each history reset has its cause
 //!   counted);
@@ -24,7 +24,7 @@ use common::{next_answer, InProcess};
 use ghnet_client::{
     flags, HeadingEstimate, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample,
 };
-use ghnet_models::{Prediction, Runner, Sample, Status};
+use ghnet_inference::{Prediction, Runner, Sample, Status};
 use ghnetd::Config;
 use proptest::prelude::*;
 use proptest::test_runner::{Config as PtConfig, TestRunner};
@@ -237,8 +237,8 @@ fn check_answer(s: &VelocitySample, h: &HeadingEstimate) -> Result<(), TestCaseE
     Ok(())
 }
 
-fn model() -> Arc<ghnet_models::Model> {
-    Arc::new(ghnet_models::Model::builtin(ghnet_models::DEFAULT_MODEL).unwrap())
+fn model() -> Arc<ghnet_inference::Model> {
+    Arc::new(ghnet_inference::Model::builtin(ghnet_inference::DEFAULT_MODEL).unwrap())
 }
 
 /// A wire sample as ghnetd hands it to the rules (`V_DOWN_UNKNOWN`: no down velocity).

@@ -59,7 +59,7 @@ struct PerSample {
 #[test]
 fn serve_path_allocates_no_more_than_its_libraries() {
     let mut models = vec![
-        ghnet_models::DEFAULT_MODEL,
+        ghnet_inference::DEFAULT_MODEL,
         "kf",
         "ghnet-temporal",
         "ghnet-epoch",

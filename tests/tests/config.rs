@@ -171,14 +171,14 @@ fn missing_model_file_named_in_the_config_file() {
 /// Safetensors bytes of the test model with its weights replaced by `params`
 /// (metadata unchanged), written through the models crate's weights API.
 /// A built-in model with network tensors to break (the default, `kf`, has none).
-fn network_model() -> ghnet_models::Model {
-    ghnet_models::Model::builtin("ghnet-epoch").unwrap()
+fn network_model() -> ghnet_inference::Model {
+    ghnet_inference::Model::builtin("ghnet-epoch").unwrap()
 }
 
-fn model_file(dir: &std::path::Path, params: &ghnet_models::params::ParamSet) -> PathBuf {
+fn model_file(dir: &std::path::Path, params: &ghnet_inference::params::ParamSet) -> PathBuf {
     let meta = network_model().meta().clone();
     let file = dir.join("model.safetensors");
-    ghnet_models::weights::write(&file, params, &meta).unwrap();
+    ghnet_inference::weights::write(&file, params, &meta).unwrap();
     file
 }
 
@@ -190,7 +190,7 @@ fn model_file_with_wrong_shapes_names_the_tensor() {
     // metadata's architecture says.
     let mut arch = model.meta().architecture.clone();
     arch.conv[0] += 1;
-    let file = model_file(dir.path(), &ghnet_models::params::ParamSet::zeros(&arch));
+    let file = model_file(dir.path(), &ghnet_inference::params::ParamSet::zeros(&arch));
     let line = fails_with_one_line(&["--model".into(), file.clone().into()]);
     assert!(line.starts_with("error: model.name"), "{line}");
     assert!(line.contains(&*file.to_string_lossy()), "{line}");

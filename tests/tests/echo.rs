@@ -1,4 +1,4 @@
-//! A published sample comes back as the heading `ghnet_models` computes in-process,
+//! A published sample comes back as the heading `ghnet_inference` computes in-process,
 //! exactly once, in order, with its `seq` and timestamp echoed.
 //!
 //! The comparisons use the per-epoch `Predictor`, so the daemon runs the per-epoch
@@ -8,15 +8,15 @@
 use std::time::Duration;
 
 use ghnet_client::{flags, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample};
+use ghnet_inference::{Predictor, Status, StatusPolicy};
 use ghnet_lab::sim::{simulate_realistic, RealisticParams};
-use ghnet_models::{Predictor, Status, StatusPolicy};
 use ghnet_testkit::{assert_silent, now_ns, Ghnetd, OneSource, TestNamespace, WATCHDOG};
 
 /// The model the comparisons mean: one answer per sample, no history.
 const PER_EPOCH: &str = "ghnet-epoch";
 
-fn per_epoch_model() -> std::sync::Arc<ghnet_models::Model> {
-    std::sync::Arc::new(ghnet_models::Model::builtin(PER_EPOCH).unwrap())
+fn per_epoch_model() -> std::sync::Arc<ghnet_inference::Model> {
+    std::sync::Arc::new(ghnet_inference::Model::builtin(PER_EPOCH).unwrap())
 }
 
 /// `|a - b| <= 1e-6 · max(1, |b|)`, both NaN counting as equal, and headings that

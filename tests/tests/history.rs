@@ -8,9 +8,9 @@ use std::sync::Arc;
 use ghnet_client::{
     HeadingEstimate, HeadingStatus, HeadingSubscriber, VelocityPublisher, VelocitySample,
 };
+use ghnet_inference::stream::{Epoch, StreamPredictor};
+use ghnet_inference::{Model, Prediction, Status};
 use ghnet_lab::drive::{simulate, DriveParams};
-use ghnet_models::stream::{Epoch, StreamPredictor};
-use ghnet_models::{Model, Prediction, Status};
 use ghnet_testkit::{now_ns, recv_answer, Ghnetd, OneSource, TestNamespace, WATCHDOG};
 
 const SECOND: u64 = 1_000_000_000;
@@ -443,8 +443,8 @@ fn a_source_platform_override_reaches_its_history() {
         let h = sp.history();
         (sp, h)
     };
-    let (mut robot, mut robot_h) = on(ghnet_models::Platform::Robot);
-    let (mut car, mut car_h) = on(ghnet_models::Platform::Car);
+    let (mut robot, mut robot_h) = on(ghnet_inference::Platform::Robot);
+    let (mut car, mut car_h) = on(ghnet_inference::Platform::Car);
     let t0 = now_ns();
     let mut differs = 0;
     for seq in 0..60u64 {

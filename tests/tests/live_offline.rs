@@ -9,8 +9,8 @@
 use std::sync::Arc;
 
 use ghnet_client::{HeadingEstimate, HeadingStatus, VelocitySample};
+use ghnet_inference::{Model, Prediction, Status};
 use ghnet_lab::replay::{Answer, Rows, Streams};
-use ghnet_models::{Model, Prediction, Status};
 use ghnet_testkit::{now_ns, recv_answer, OneSource, WATCHDOG};
 
 /// Rows in the log.
@@ -93,15 +93,14 @@ fn offline(model: Arc<Model>, log: &[Row]) -> Vec<Prediction> {
     out
 }
 
-fn wire(s: Status) -> HeadingStatus {
-    match s {
-        Status::Ok => HeadingStatus::Ok,
-        Status::LowSpeed => HeadingStatus::LowSpeed,
-        Status::Stationary => HeadingStatus::Stationary,
-        Status::Invalid => HeadingStatus::InvalidInput,
-        Status::Held => HeadingStatus::Held,
-    }
-}
+/// The model's status and the wire status ghnetd answers it with.
+const STATUSES: [(Status, HeadingStatus); 5] = [
+    (Status::Ok, HeadingStatus::Ok),
+    (Status::LowSpeed, HeadingStatus::LowSpeed),
+    (Status::Stationary, HeadingStatus::Stationary),
+    (Status::Invalid, HeadingStatus::InvalidInput),
+    (Status::Held, HeadingStatus::Held),
+];
 
 /// The rows where the two disagree, described.
 fn differences(live: &[HeadingEstimate], offline: &[Prediction]) -> Vec<String> {
@@ -110,7 +109,9 @@ fn differences(live: &[HeadingEstimate], offline: &[Prediction]) -> Vec<String> 
         .zip(offline)
         .enumerate()
         .filter(|(_, (h, p))| {
-            let status = h.heading_status() == Some(wire(p.status));
+            let status = STATUSES
+                .iter()
+                .any(|&(m, w)| m == p.status && h.heading_status() == Some(w));
             let numbers = p.status == Status::Invalid
                 || (same(h.heading_deg, p.heading_deg) && same(h.heading_std_deg, p.std_deg));
             !(status && numbers)

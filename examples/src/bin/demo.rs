@@ -17,9 +17,9 @@ use ghnet_client::{flags, IpcConfig, VelocitySample};
 use ghnet_client::{HeadingEstimate, HeadingStatus, HeadingSubscriber, VelocityPublisher};
 use ghnet_examples::{log_to_stderr, now_ns, pacing_node, wait_for_subscriber};
 use ghnet_examples::{CarDrive, Pacer, PrivateNamespace};
+use ghnet_inference::stream::{Epoch, StreamPredictor};
+use ghnet_inference::Model;
 use ghnet_lab::drive::DriveSample;
-use ghnet_models::stream::{Epoch, StreamPredictor};
-use ghnet_models::Model;
 
 const SOURCE: &str = "demo";
 
@@ -114,7 +114,7 @@ struct Args {
     #[arg(long)]
     isolated: bool,
     /// Model: built-in name or .safetensors path.
-    #[arg(long, default_value = ghnet_models::DEFAULT_MODEL)]
+    #[arg(long, default_value = ghnet_inference::DEFAULT_MODEL)]
     model: String,
 }
 

@@ -1,4 +1,4 @@
-//! `ghnet_models`: GHNet inference, what `ghnetd` links. The network of the paper's
+//! `ghnet_inference`: GHNet inference, what `ghnetd` links. The network of the paper's
 //! Table I on [faer], its weights, the output heads and the per-thread predictor, and
 //! the models compiled into every binary. Nothing else: simulation, training,
 //! evaluation and the `ghnet` tool are the lab (`ghnet-lab`), which depends on this

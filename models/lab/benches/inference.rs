@@ -24,9 +24,9 @@ use std::sync::Arc;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use faer::Mat;
-use ghnet_models::gelu::gelu_inplace_with;
-use ghnet_models::simd::{peak_fma_loop, peak_loop_flops, Kernel};
-use ghnet_models::{Epoch, Model, Prediction, Predictor, StreamPredictor};
+use ghnet_inference::gelu::gelu_inplace_with;
+use ghnet_inference::simd::{peak_fma_loop, peak_loop_flops, Kernel};
+use ghnet_inference::{Epoch, Model, Prediction, Predictor, StreamPredictor};
 
 fn stream(c: &mut Criterion) {
     let p = ghnet_lab::drive::DriveParams {
@@ -47,7 +47,7 @@ fn stream(c: &mut Criterion) {
     let mut g = c.benchmark_group("stream");
     g.throughput(Throughput::Elements(1));
     // The default once (it may be one of the other two: criterion refuses repeated ids).
-    let mut names = vec![ghnet_models::DEFAULT_MODEL, "kf", "ghnet-temporal"];
+    let mut names = vec![ghnet_inference::DEFAULT_MODEL, "kf", "ghnet-temporal"];
     names.sort_unstable();
     names.dedup();
     for name in names {

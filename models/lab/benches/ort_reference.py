@@ -202,7 +202,7 @@ def ghnet(args, cmd, stdin=None):
     exe = args.ghnet or os.path.join(ROOT, "target", "release", "ghnet")
     if not args.ghnet:
         subprocess.run(
-            ["cargo", "build", "--release", "-q", "-p", "ghnet-models", "--bin", "ghnet"],
+            ["cargo", "build", "--release", "-q", "-p", "ghnet-inference", "--bin", "ghnet"],
             cwd=ROOT,
             check=True,
         )

@@ -10,10 +10,10 @@ use std::hint::black_box;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use ghnet_models::gelu::gelu_inplace_with;
-use ghnet_models::net::Network;
-use ghnet_models::simd::{peak_fma_loop, peak_loop_flops, Kernel};
-use ghnet_models::{Model, Prediction, Predictor};
+use ghnet_inference::gelu::gelu_inplace_with;
+use ghnet_inference::net::Network;
+use ghnet_inference::simd::{peak_fma_loop, peak_loop_flops, Kernel};
+use ghnet_inference::{Model, Prediction, Predictor};
 use serde::Serialize;
 
 /// Batch size of the throughput figures.

@@ -6,9 +6,9 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 
+use ghnet_inference::Model;
 use ghnet_lab::make::{self, TemporalRecipe};
 use ghnet_lab::{eval, plot, streval};
-use ghnet_models::Model;
 
 /// The shipped `kf`, the baseline of every streamed table.
 fn builtin_kf() -> Result<Arc<Model>> {

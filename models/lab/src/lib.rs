@@ -1,6 +1,6 @@
 //! `ghnet_lab`: where GHNet models are made and judged. Simulation, training,
 //! evaluation, plots, offline replay of logs and the `ghnet` command-line tool, on top
-//! of the inference crate `ghnet_models` (which never imports from here).
+//! of the inference crate `ghnet_inference` (which never imports from here).
 //!
 //! # Layout
 //! - [`sim`]: the paper's S1 grid and a realistic receiver over the full circle.

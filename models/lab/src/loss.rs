@@ -1,11 +1,11 @@
-//! The losses that train the output heads (inference only decodes: `ghnet_models::head`).
+//! The losses that train the output heads (inference only decodes: `ghnet_inference::head`).
 //!
 //! Both heading losses are the paper's MAE on the wrapped error. Every head's last output,
 //! `log σ`, is trained with a Gaussian negative log-likelihood on the *detached* wrapped
 //! error, so σ learns the error scale without pulling on the heading.
 
-use ghnet_models::head::{sigmoid, wrap_rad, Head, KalmanBase, LOG_SIGMA_MAX, LOG_SIGMA_MIN};
-use ghnet_models::modes::{corrected_gain, reverse_logit, Step};
+use ghnet_inference::head::{sigmoid, wrap_rad, Head, KalmanBase, LOG_SIGMA_MAX, LOG_SIGMA_MIN};
+use ghnet_inference::modes::{corrected_gain, reverse_logit, Step};
 
 /// Weight of the penalty that keeps the residual head's `(c, s)` near the unit circle,
 /// where `atan2(s, c)` is well conditioned.
@@ -73,7 +73,7 @@ pub fn head_loss(
             // Without a prior (`Head::raw`): the filter step from ψₚ = A.
             let a = v_east.atan2(v_north);
             let r = reverse_label(v_north, v_east, truth_deg);
-            let cap = ghnet_models::head::MAX_STD_DEG.to_radians();
+            let cap = ghnet_inference::head::MAX_STD_DEG.to_radians();
             let base = KalmanBase {
                 p: cap * cap,
                 r2: cap * cap,
@@ -91,7 +91,7 @@ pub const GAIN_LEAK: f32 = 0.05;
 /// (radians): a misread direction costs 180°, so the switch earns a strong signal.
 pub const REVERSE_WEIGHT: f32 = 0.2;
 
-/// Loss of the filter head ([`ghnet_models::head::Head::Filter`]) for one epoch whose
+/// Loss of the filter head ([`ghnet_inference::head::Head::Filter`]) for one epoch whose
 /// course is `course` and whose previous heading is `prior` (radians), with its gradient
 /// with respect to the three outputs in `dy`. Returns `(loss, wrapped error, raw σ)`.
 ///
@@ -114,7 +114,7 @@ pub fn filter_loss(
     sigma_weight: f32,
     dy: &mut [f32],
 ) -> (f32, f32, f32) {
-    let (psi, step_log_sigma, _, d) = ghnet_models::head::filter_step(y, course, prior, base);
+    let (psi, step_log_sigma, _, d) = ghnet_inference::head::filter_step(y, course, prior, base);
     let log_sigma = step_log_sigma + y[2];
     let e = wrap_rad(psi - truth_deg.to_radians());
     let sign = e.signum() * (e != 0.0) as i32 as f32;
@@ -163,7 +163,7 @@ fn sigma_likelihood(e: f32, log_sigma: f32, sigma_weight: f32) -> (f32, f32, f32
 }
 
 /// Loss of the temporal model's correction of one mode-filter step
-/// ([`ghnet_models::modes::commit`]) and its gradient with respect to the three outputs
+/// ([`ghnet_inference::modes::commit`]) and its gradient with respect to the three outputs
 /// in `dy`. Returns `(loss, wrapped error, raw σ)`.
 ///
 /// The heading is `ψ = ψₚ + g·d` with `g` the Kalman gain `K` corrected in log-odds by
@@ -186,7 +186,7 @@ pub fn mode_loss(
     let truth = truth_deg.to_radians();
     if step.hold {
         let e = wrap_rad(step.prior - truth);
-        return (0.0, e, ghnet_models::head::MAX_STD_DEG.to_radians());
+        return (0.0, e, ghnet_inference::head::MAX_STD_DEG.to_radians());
     }
     let logit = reverse_logit(step.rule_reverse, y[1]);
     let rev = logit > 0.0;

@@ -1,6 +1,6 @@
 //! `ghnet`: simulate, train, evaluate, export and run GHNet models from the command line.
 //!
-//! A thin layer over the `ghnet_models` library; every subcommand's `--help` documents it.
+//! A thin layer over the `ghnet_inference` library; every subcommand's `--help` documents it.
 
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read};
@@ -11,11 +11,11 @@ use std::sync::Arc;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
+use ghnet_inference::simd::Kernel;
+use ghnet_inference::{Model, Platform, DEFAULT_MODEL};
 use ghnet_lab::make::{self, Recipe};
 use ghnet_lab::sim::{self, RealisticParams, S1Params};
 use ghnet_lab::{receiver_log, replay};
-use ghnet_models::simd::Kernel;
-use ghnet_models::{Model, Platform, DEFAULT_MODEL};
 
 #[derive(Parser)]
 #[command(
@@ -475,7 +475,7 @@ fn infer(
 /// Raw outputs for `v_north v_east` lines on stdin, one output line each.
 fn forward_stdin(m: &Model) -> Result<()> {
     use std::io::{BufRead, Write};
-    let Some(ghnet_models::model::Engine::Epoch(net)) = Some(m.engine()) else {
+    let Some(ghnet_inference::model::Engine::Epoch(net)) = Some(m.engine()) else {
         bail!(
             "forward prints a per-epoch network's outputs; {} is not one",
             m.name()
@@ -496,7 +496,7 @@ fn forward_stdin(m: &Model) -> Result<()> {
         let [vn, ve] = v[..] else {
             bail!("line {}: expected `v_north v_east`, got `{line}`", i + 1);
         };
-        let x = ghnet_models::head::scale_input(vn, ve, m.meta().input_scale_mps);
+        let x = ghnet_inference::head::scale_input(vn, ve, m.meta().input_scale_mps);
         net.forward_one(&x, &mut y, &mut scratch);
         let fields: Vec<String> = y.iter().map(|v| format!("{v:e}")).collect();
         writeln!(out, "{}", fields.join(" "))?;

@@ -10,7 +10,7 @@
 //! and written in blocks, so memory does not grow with the file.
 //!
 //! `ghnet infer` answers each track through the sample rules ghnetd applies to a
-//! source ([`Streams`]: `ghnet_models::source`, one `SourceStream` per track), so a log
+//! source ([`Streams`]: `ghnet_inference::source`, one `SourceStream` per track), so a log
 //! replayed here and the same samples published into ghnetd get the same answers: rows
 //! in file order, one stream per value of a `track` column (all rows share one without
 //! it), time from `t_s` (seconds) or `timestamp_ns`. A row whose time is earlier than
@@ -45,8 +45,8 @@ use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::sync::Arc;
 
-use ghnet_models::{Model, Runner, Sample, SourceStream, StatusPolicy};
-use ghnet_models::{Prediction, Predictor, Status};
+use ghnet_inference::{Model, Runner, Sample, SourceStream, StatusPolicy};
+use ghnet_inference::{Prediction, Predictor, Status};
 
 /// Rows per block: large enough for the batch path, small enough to stay in cache.
 const BLOCK: usize = 1024;
@@ -358,7 +358,7 @@ pub fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ghnet_models::Model;
+    use ghnet_inference::Model;
     use std::sync::Arc;
 
     fn predictor() -> Predictor {

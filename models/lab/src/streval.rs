@@ -8,9 +8,9 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use ghnet_models::stream::{Epoch, StreamPredictor};
-use ghnet_models::weights::ModelKind;
-use ghnet_models::{Model, Status};
+use ghnet_inference::stream::{Epoch, StreamPredictor};
+use ghnet_inference::weights::ModelKind;
+use ghnet_inference::{Model, Status};
 
 use crate::drive::Platform;
 use crate::eval::wrap_deg;
@@ -326,8 +326,8 @@ fn held_moving(tracks: &[LogTrack], a: &Answers, idx: &[usize]) -> Option<f64> {
 /// knows a parked vehicle's heading and every stateful model answers the first
 /// epoch's course (the shared start convention), so tables also show the MAE after it.
 pub fn after_first_motion(tracks: &[LogTrack], sigma_v: f32, max_gap_s: f32) -> Vec<bool> {
-    let cap = ghnet_models::head::MAX_STD_DEG.to_radians();
-    // The gate of `ghnet_models::modes::prepare`: σ_v/ŝ under the uniform σ.
+    let cap = ghnet_inference::head::MAX_STD_DEG.to_radians();
+    // The gate of `ghnet_inference::modes::prepare`: σ_v/ŝ under the uniform σ.
     let gate = sigma_v * sigma_v * (2.0 + 1.0 / (cap * cap));
     let mut out = Vec::new();
     for t in tracks {

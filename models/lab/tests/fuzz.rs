@@ -1,4 +1,4 @@
-//! Property-based fuzzing of every parser in ghnet-models (proptest, modest case
+//! Property-based fuzzing of every parser in ghnet-inference (proptest, modest case
 //! counts so CI stays at a few seconds per target), plus one malformed-CSV run of the
 //! real `ghnet infer` binary.
 //!
@@ -13,14 +13,14 @@
 use std::collections::HashMap;
 use std::sync::{Arc, OnceLock};
 
+use ghnet_inference::weights::{self, WeightsError};
+use ghnet_inference::{Model, Predictor};
 use ghnet_lab::replay;
-use ghnet_models::weights::{self, WeightsError};
-use ghnet_models::{Model, Predictor};
 use proptest::prelude::*;
 
 fn model() -> Arc<Model> {
     static M: OnceLock<Arc<Model>> = OnceLock::new();
-    M.get_or_init(|| Arc::new(Model::builtin(ghnet_models::DEFAULT_MODEL).unwrap()))
+    M.get_or_init(|| Arc::new(Model::builtin(ghnet_inference::DEFAULT_MODEL).unwrap()))
         .clone()
 }
 
@@ -235,7 +235,7 @@ proptest! {
     ], cut in any::<prop::sample::Index>()) {
         let prefix: String = json.chars().take(cut.index(json.len() + 1)).collect();
         for text in [json.as_str(), prefix.as_str()] {
-            if let Ok(meta) = serde_json::from_str::<ghnet_models::ModelMeta>(text) {
+            if let Ok(meta) = serde_json::from_str::<ghnet_inference::ModelMeta>(text) {
                 prop_assert!(serde_json::to_string(&meta).is_ok());
             }
         }

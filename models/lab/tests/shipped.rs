@@ -4,9 +4,9 @@
 
 use std::sync::Arc;
 
+use ghnet_inference::Model;
 use ghnet_lab::eval::{Report, ATAN2};
 use ghnet_lab::make::epoch::{self, DataSpec};
-use ghnet_models::Model;
 
 fn close(a: f64, b: f64, what: &str) {
     assert!(

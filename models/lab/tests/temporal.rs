@@ -86,7 +86,7 @@ fn train_eval_and_infer_on_a_small_log() {
     ghnet(&[
         "train", "--data", c, "--output", m, "--epochs", "2", "--seed", "5",
     ]);
-    let loaded = ghnet_models::Model::load(&model).expect("the written model loads");
+    let loaded = ghnet_inference::Model::load(&model).expect("the written model loads");
     assert!(loaded.is_stateful());
     assert_eq!(loaded.name(), "mine");
     let eval = ghnet(&["eval", "--model", m, "--data", c]);

@@ -63,7 +63,7 @@ use ghnet_client::zenoh::{self, Wait};
 use ghnet_client::{
     HeadingEstimate, HeadingStatus, HeadingSubscriber, IpcConfig, VelocityPublisher, VelocitySample,
 };
-use ghnet_models::Model;
+use ghnet_inference::Model;
 pub use ghnetd::{run_ghnetd, Counters, Ghnetd, GhnetdBuilder, Listen, OneSource};
 pub use netns::NetNamespace;
 
@@ -251,7 +251,7 @@ pub struct TestModel {
 /// The model every daemon of the kit runs unless told otherwise, loaded the way the
 /// daemon loads it.
 ///
-/// Normally the default built-in model (`ghnet_models::DEFAULT_MODEL`), so the tests
+/// Normally the default built-in model (`ghnet_inference::DEFAULT_MODEL`), so the tests
 /// exercise what ships without a `--model` flag. While its embedded weights fail to
 /// load (e.g. a placeholder during retraining), the first other built-in model that
 /// loads is used and passed as `--model <name>`, so the IPC tests still run; a note
@@ -259,8 +259,8 @@ pub struct TestModel {
 pub fn test_model() -> &'static TestModel {
     static MODEL: OnceLock<TestModel> = OnceLock::new();
     MODEL.get_or_init(|| {
-        let default = ghnet_models::DEFAULT_MODEL;
-        let others = ghnet_models::model::BUILTIN.iter().map(|(name, _)| *name);
+        let default = ghnet_inference::DEFAULT_MODEL;
+        let others = ghnet_inference::model::BUILTIN.iter().map(|(name, _)| *name);
         let mut errors = Vec::new();
         for name in std::iter::once(default).chain(others.filter(|n| *n != default)) {
             match Model::from_name_or_path(name) {

@@ -39,11 +39,11 @@ pub fn atan2_heading_deg(vn: f32, ve: f32) -> f32 {
 }
 
 /// Clips a heading to the arc from `lo` clockwise to `hi` (degrees); see
-/// [`ghnet_models::head::clip_to_range`]. Used for the prior-only baseline: a model trained on
+/// [`ghnet_inference::head::clip_to_range`]. Used for the prior-only baseline: a model trained on
 /// headings in [0, 90] can at best learn to stay inside that range, so atan2 clipped to
 /// it is the baseline any gain must be measured against. The same function clamps the
 /// restricted-range heads' output, so baseline and model clip identically.
-pub use ghnet_models::head::clip_to_range;
+pub use ghnet_inference::head::clip_to_range;
 
 /// One estimator's headings for a set of samples, in the order of the [`Truth`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -16,10 +16,10 @@ use crate::bayes::BayesS1;
 use crate::eval::{self, Estimate, EvalConfig, Report, Truth};
 use crate::sim::{self, RealisticParams, S1Params, Sample, Split};
 use crate::train::{self, Dataset, TrainConfig};
-use ghnet_models::head::Head;
-use ghnet_models::weights::{ModelMeta, FORMAT};
-use ghnet_models::Arch;
-use ghnet_models::{Model, Predictor};
+use ghnet_inference::head::Head;
+use ghnet_inference::weights::{ModelMeta, FORMAT};
+use ghnet_inference::Arch;
+use ghnet_inference::{Model, Predictor};
 
 /// Which simulator made a data set, with its parameters and seed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -163,7 +163,7 @@ pub fn model_estimate(model: &std::sync::Arc<Model>, samples: &[Sample]) -> Esti
     let vn: Vec<f32> = samples.iter().map(|s| s.v_north).collect();
     let ve: Vec<f32> = samples.iter().map(|s| s.v_east).collect();
     let acc: Vec<f32> = samples.iter().map(|s| s.speed_acc).collect();
-    let mut out = vec![ghnet_models::Prediction::INVALID; samples.len()];
+    let mut out = vec![ghnet_inference::Prediction::INVALID; samples.len()];
     p.predict_batch_with_accuracy(&vn, &ve, &acc, &mut out);
     Estimate {
         name: model.name().to_string(),
@@ -275,12 +275,12 @@ pub fn train_recipe(r: &Recipe, output: &Path, quiet: bool) -> Result<()> {
             "eval_max_speed": r.eval_max_speed,
         }),
         metrics: serde_json::Value::Null,
-        kind: ghnet_models::weights::ModelKind::Epoch,
+        kind: ghnet_inference::weights::ModelKind::Epoch,
     };
     // Measure on held-out data and store the headline numbers in the file itself.
     let (metrics, summary) = test_metrics(&trained.params, &meta, r, &test)?;
     meta.metrics = metrics;
-    ghnet_models::weights::write(output, &trained.params, &meta)
+    ghnet_inference::weights::write(output, &trained.params, &meta)
         .with_context(|| format!("writing {}", output.display()))?;
     eprintln!(
         "{}: best epoch {} of {}, {summary}, {:.0} s -> {}",
@@ -296,7 +296,7 @@ pub fn train_recipe(r: &Recipe, output: &Path, quiet: bool) -> Result<()> {
 /// A per-epoch model's metrics on its recipe's `test` samples (for its metadata) and a
 /// one-line summary.
 fn test_metrics(
-    params: &ghnet_models::params::ParamSet,
+    params: &ghnet_inference::params::ParamSet,
     meta: &ModelMeta,
     r: &Recipe,
     test: &[crate::sim::Sample],

@@ -3,10 +3,10 @@
 
 use std::sync::Arc;
 
-use ghnet_models::head::Head;
-use ghnet_models::params::{Arch, ParamSet};
-use ghnet_models::weights::{ModelKind, ModelMeta};
-use ghnet_models::Model;
+use ghnet_inference::head::Head;
+use ghnet_inference::params::{Arch, ParamSet};
+use ghnet_inference::weights::{ModelKind, ModelMeta};
+use ghnet_inference::Model;
 
 use crate::logs::LogTrack;
 use crate::streval::{mae, run_model};

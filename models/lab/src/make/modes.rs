@@ -13,9 +13,9 @@
 
 use std::sync::Arc;
 
-use ghnet_models::modes::ModeParams;
-use ghnet_models::weights::ModelKind;
-use ghnet_models::{Model, Platform};
+use ghnet_inference::modes::ModeParams;
+use ghnet_inference::weights::ModelKind;
+use ghnet_inference::{Model, Platform};
 
 use crate::logs::LogTrack;
 use crate::temporal::{mean_abs_deg, stream_errors};

@@ -7,9 +7,9 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 
-use ghnet_models::head::Head;
-use ghnet_models::weights::{ModelMeta, FORMAT};
-use ghnet_models::{Arch, Model};
+use ghnet_inference::head::Head;
+use ghnet_inference::weights::{ModelMeta, FORMAT};
+use ghnet_inference::{Arch, Model};
 
 use super::kf::kf_model;
 use super::modes::{fit_modes, mae_with, modes_of, with_modes};
@@ -33,13 +33,13 @@ pub fn train_data(
     range: Option<(f32, f32)>,
     seed: Option<u64>,
     epochs: Option<usize>,
-    platform: Option<ghnet_models::Platform>,
+    platform: Option<ghnet_inference::Platform>,
 ) -> Result<()> {
     let (tr, va) = read_logs(paths, 0.2)?;
     if let Some((lo, hi)) = range {
         return train_restricted(&tr, &va, output, lo, hi, seed, epochs);
     }
-    let base = Model::from_name_or_path(init.unwrap_or(ghnet_models::DEFAULT_MODEL))?;
+    let base = Model::from_name_or_path(init.unwrap_or(ghnet_inference::DEFAULT_MODEL))?;
     let (cfg, kf) = own_config(&base, &tr, &va, platform)?;
     let cfg = TemporalConfig {
         seed: seed.unwrap_or(cfg.seed),
@@ -109,9 +109,9 @@ fn own_config(
     base: &Model,
     tr: &[crate::logs::LogTrack],
     va: &[crate::logs::LogTrack],
-    platform: Option<ghnet_models::Platform>,
+    platform: Option<ghnet_inference::Platform>,
 ) -> Result<(TemporalConfig, Arc<Model>)> {
-    let ghnet_models::weights::ModelKind::Temporal {
+    let ghnet_inference::weights::ModelKind::Temporal {
         max_gap_s,
         q_deg_per_sqrt_s,
         sigma_v_mps,
@@ -218,9 +218,9 @@ fn train_restricted(
         training_data: serde_json::json!({"logs": "user data", "heading_range_deg": [lo, hi]}),
         training: serde_json::json!({"config": cfg, "best_epoch": t.best_epoch}),
         metrics: serde_json::json!({"val_mae_deg": t.best_val_mae_deg}),
-        kind: ghnet_models::weights::ModelKind::Epoch,
+        kind: ghnet_inference::weights::ModelKind::Epoch,
     };
-    ghnet_models::weights::write(output, &t.params, &meta)?;
+    ghnet_inference::weights::write(output, &t.params, &meta)?;
     eprintln!(
         "restricted model: validation MAE {:.3}° -> {}",
         t.best_val_mae_deg,

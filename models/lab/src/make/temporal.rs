@@ -8,8 +8,8 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 
-use ghnet_models::weights::ModelMeta;
-use ghnet_models::Model;
+use ghnet_inference::weights::ModelMeta;
+use ghnet_inference::Model;
 
 use super::kf::tuned_kf;
 use crate::drive::{self, DriveParams, Platform};

@@ -1,7 +1,7 @@
 //! Training the temporal model: corrections of the mode filter, taught on its own runs.
 //!
 //! At inference the network reads the mode filter's prepared step
-//! ([`ghnet_models::modes::prepare`], through [`ghnet_models::stream::inputs`]) and the
+//! ([`ghnet_inference::modes::prepare`], through [`ghnet_inference::stream::inputs`]) and the
 //! cached features of the last `W` epochs, and corrects the step. Back-propagating
 //! through that recurrence over whole drives is what this avoids: each training epoch
 //! first **runs the current model recurrently** over every training track, exactly as
@@ -31,12 +31,12 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use ghnet_models::head::Head;
-use ghnet_models::modes::{prepare, ModeParams, SigmaMaps, Step, StepState};
-use ghnet_models::params::{Arch, ParamSet};
-use ghnet_models::stream::{inputs, Epoch, Reset, StreamPredictor, INPUTS};
-use ghnet_models::weights::{ModelKind, ModelMeta};
-use ghnet_models::Model;
+use ghnet_inference::head::Head;
+use ghnet_inference::modes::{prepare, ModeParams, SigmaMaps, Step, StepState};
+use ghnet_inference::params::{Arch, ParamSet};
+use ghnet_inference::stream::{inputs, Epoch, Reset, StreamPredictor, INPUTS};
+use ghnet_inference::weights::{ModelKind, ModelMeta};
+use ghnet_inference::Model;
 
 use crate::logs::LogTrack;
 use crate::train::{fc_backward, fc_forward, AdamW, ConvStack, Mode};
@@ -151,7 +151,7 @@ fn start_state(before: &StepState, reset: Option<Reset>, first: bool) -> StepSta
 
 /// Turn the previous heading of `h` by 180° or to a random heading, with probability
 /// `p` per epoch.
-fn perturb(h: &mut ghnet_models::History, rng: &mut ChaCha8Rng, p: f64) {
+fn perturb(h: &mut ghnet_inference::History, rng: &mut ChaCha8Rng, p: f64) {
     if rng.random::<f64>() < p && h.state().has_prior {
         let mut s = *h.state();
         s.psi += if rng.random::<bool>() {

@@ -5,12 +5,12 @@
 
 use std::sync::Arc;
 
-use ghnet_models::head::wrap_rad;
-use ghnet_models::modes::{SigmaMap, SigmaMaps, StepState, TURN_SPEED};
-use ghnet_models::params::ParamSet;
-use ghnet_models::stream::{Epoch, StreamPredictor};
-use ghnet_models::weights::{ModelKind, ModelMeta};
-use ghnet_models::Model;
+use ghnet_inference::head::wrap_rad;
+use ghnet_inference::modes::{SigmaMap, SigmaMaps, StepState, TURN_SPEED};
+use ghnet_inference::params::ParamSet;
+use ghnet_inference::stream::{Epoch, StreamPredictor};
+use ghnet_inference::weights::{ModelKind, ModelMeta};
+use ghnet_inference::Model;
 
 use crate::logs::LogTrack;
 
@@ -24,9 +24,9 @@ pub struct Streamed {
     pub sigma: Vec<f32>,
     /// The history knew the vehicle to be a car.
     pub car: Vec<bool>,
-    /// The epoch moved (its course was measured, [`Step::moving`](ghnet_models::modes::Step::moving)).
+    /// The epoch moved (its course was measured, [`Step::moving`](ghnet_inference::modes::Step::moving)).
     pub moving: Vec<bool>,
-    /// The receiver was clean ([`ghnet_models::modes::clean`]) when the vehicle last
+    /// The receiver was clean ([`ghnet_inference::modes::clean`]) when the vehicle last
     /// moved (what a standing car's σ map is chosen by).
     pub clean: Vec<bool>,
     /// Measured speed, m/s (whether a moving epoch's σ has the turn term).
@@ -203,7 +203,7 @@ fn stop_weights(starts: &[bool]) -> Vec<f64> {
 /// `weights` entry (errors and raw σ in radians; the uniform σ stays as it is).
 pub fn coverage(map: &SigmaMap, errs: &[f32], sigma: &[f32], weights: &[f64]) -> (f64, f64) {
     let (mut c1, mut c2, mut n) = (0.0, 0.0, 0.0);
-    let cap = ghnet_models::head::MAX_STD_DEG.to_radians();
+    let cap = ghnet_inference::head::MAX_STD_DEG.to_radians();
     for ((e, s), w) in errs.iter().zip(sigma).zip(weights) {
         let r = if *s >= 0.999 * cap {
             cap
@@ -235,7 +235,7 @@ const BAR_1SIGMA_MAX: f64 = 0.76;
 
 /// A monotone σ map from (wrapped error, raw σ) pairs in radians, each weighing its
 /// `weights` entry (all 1 per epoch; 1/stop length per stop): the raw σ split into
-/// [`SIGMA_KNOTS`](ghnet_models::modes::SIGMA_KNOTS) bins of equal weight; in each,
+/// [`SIGMA_KNOTS`](ghnet_inference::modes::SIGMA_KNOTS) bins of equal weight; in each,
 /// the σ that puts a share `a` of the errors within 1σ, raised if needed so that a
 /// share `b` falls within 2σ; made non-decreasing (pool adjacent violators). `(a, b)`
 /// are searched so that overall `target_2sigma` of the errors fall within 2σ and the
@@ -268,8 +268,8 @@ pub fn fit_sigma_map(errs: &[f32], sigma: &[f32], weights: &[f64], target_2sigma
 
 /// The map of [`fit_sigma_map`] for fixed shares `a` (1σ) and `b` (2σ) per bin.
 fn binned_map(errs: &[f32], sigma: &[f32], weights: &[f64], a: f64, b: f64) -> SigmaMap {
-    use ghnet_models::modes::SIGMA_KNOTS;
-    let cap = ghnet_models::head::MAX_STD_DEG.to_radians() * 0.999;
+    use ghnet_inference::modes::SIGMA_KNOTS;
+    let cap = ghnet_inference::head::MAX_STD_DEG.to_radians() * 0.999;
     let mut pairs: Vec<(f32, f32, f64)> = sigma
         .iter()
         .zip(errs)
@@ -305,7 +305,7 @@ fn binned_map(errs: &[f32], sigma: &[f32], weights: &[f64], a: f64, b: f64) -> S
             .max(0.5 * weighted_quantile(&e, b))
             .max(1e-4);
         map.raw_deg[k] = bin[bin.len() / 2].0.to_degrees();
-        map.reported_deg[k] = s.to_degrees().min(ghnet_models::head::MAX_STD_DEG);
+        map.reported_deg[k] = s.to_degrees().min(ghnet_inference::head::MAX_STD_DEG);
         bin_w[k] = bin.iter().map(|p| p.2).sum();
     }
     isotonic(&mut map.reported_deg, &bin_w);

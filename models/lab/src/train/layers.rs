@@ -11,8 +11,8 @@ use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rand::Rng;
 
-use ghnet_models::gelu::gelu_with_grad;
-use ghnet_models::params::{Arch, ParamSet, BN_EPS};
+use ghnet_inference::gelu::gelu_with_grad;
+use ghnet_inference::params::{Arch, ParamSet, BN_EPS};
 
 /// Batch-norm momentum for running statistics, PyTorch's default.
 const BN_MOMENTUM: f32 = 0.1;

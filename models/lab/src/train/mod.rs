@@ -10,9 +10,9 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use ghnet_models::head::{accuracy_sigma_base, scale_input, Head};
-use ghnet_models::net::Network;
-use ghnet_models::params::{Arch, ParamSet, Role};
+use ghnet_inference::head::{accuracy_sigma_base, scale_input, Head};
+use ghnet_inference::net::Network;
+use ghnet_inference::params::{Arch, ParamSet, Role};
 
 mod layers;
 pub use layers::{
@@ -228,7 +228,7 @@ pub fn evaluate(
                 &mut dy,
             );
             let (deg, _) = head.decode(&out, data.v_north[i], data.v_east[i], 1.0);
-            errs.push(ghnet_models::head::wrap_rad(
+            errs.push(ghnet_inference::head::wrap_rad(
                 (deg - data.heading_deg[i]).to_radians(),
             ));
             sigmas.push(s);
@@ -670,7 +670,7 @@ mod tests {
         let ve: Vec<f32> = (0..n).map(|_| rng.random_range(-2.0..2.0)).collect();
         // Truth 60° away from atan2 keeps the wrapped error away from its kinks.
         let truth: Vec<f32> = (0..n)
-            .map(|i| ghnet_models::head::heading_deg(vn[i], ve[i]) + 60.0)
+            .map(|i| ghnet_inference::head::heading_deg(vn[i], ve[i]) + 60.0)
             .collect();
         let mut drop_rng = ChaCha8Rng::seed_from_u64(11);
         graph.sample_dropout(0.2, &mut drop_rng);

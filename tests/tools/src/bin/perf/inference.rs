@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use ghnet_models::{Model, Predictor};
+use ghnet_inference::{Model, Predictor};
 use ghnet_tools::Percentiles;
 
 use crate::{info, us, Row};

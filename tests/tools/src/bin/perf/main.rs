@@ -4,7 +4,7 @@
 //!
 //! How it measures fairly: the baseline is this binary re-spawned as `perf echo`
 //! (same process layout, same WaitSet wake-up, same iceoryx2 + Zenoh outputs, no
-//! model), the model cost is measured in the same run with `ghnet_models::Predictor`,
+//! model), the model cost is measured in the same run with `ghnet_inference::Predictor`,
 //! and every target lives in a private iceoryx2 namespace on its own Zenoh port
 //! (started by the test kit), so nothing else on the machine is touched.
 //!
@@ -36,7 +36,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use ghnet_client::zenoh::{self, Wait};
-use ghnet_models::DEFAULT_MODEL;
+use ghnet_inference::DEFAULT_MODEL;
 
 mod alloc;
 mod echo;
