@@ -49,3 +49,45 @@ impl IpcArgs {
             .map_err(IpcArgsError::Iceoryx2)
     }
 }
+
+/// A bridge's `main` after parsing and logging set-up: reports a bad configuration, installs
+/// the stop latch before anything blocks (iceoryx2 captures SIGINT/SIGTERM once it
+/// is in use, so Ctrl-C only sets a flag), runs until stopped or failed, and maps
+/// the outcome to the exit code. A stop is logged when first seen. Errors print
+/// with `{:#}`, so an `anyhow` chain shows in full.
+pub fn run_bridge<C, T, E: std::fmt::Display, F: std::fmt::Display>(
+    config: Result<C, E>,
+    run: impl FnOnce(&C, &dyn Fn() -> bool) -> Result<T, F>,
+) -> std::process::ExitCode {
+    use std::process::ExitCode;
+    let config = match config {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let latch = crate::StopLatch::new();
+    match run(&config, &|| latch.poll(|| tracing::info!("stop requested"))) {
+        Ok(_) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Sets up a bridge's logs: `tracing` on stderr (so output on stdout stays clean),
+/// filtered by `RUST_LOG` or else `default_filter`; iceoryx2's own console logger
+/// only for errors unless its environment variable asks for more, because the
+/// bridge reports what an operator needs.
+pub fn init_logs(default_filter: &str) {
+    use tracing_subscriber::EnvFilter;
+    iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_env_filter(
+            EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default_filter)),
+        )
+        .init();
+}

@@ -23,7 +23,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use crate::error::{BoxError, OpenError, RecvError, SendError};
-use crate::limits;
+use crate::limits::{self, Refusal};
 use crate::names::{validate_source_name, IpcConfig, NameError};
 use crate::settings::{open_event, open_pubsub, EventFactory, Message, PubSubFactory};
 use crate::wire::{HeadingEstimate, VelocitySample};
@@ -128,11 +128,13 @@ impl<T: Message> Pair<T> {
             ServiceName::new(&name).map_err(|e| service_error("publish-subscribe", Box::new(e)))?;
         let settings = ipc.settings();
         let pubsub = open_pubsub::<T>(node, &service_name, settings).map_err(|e| {
-            limits::pubsub_open::<T>(node, &service_name, settings, &e)
+            Refusal::of_pubsub(&e)
+                .and_then(|r| r.error::<T>(node, &service_name, settings))
                 .unwrap_or_else(|| service_error("publish-subscribe", Box::new(e)))
         })?;
         let event = open_event(node, &service_name, settings).map_err(|e| {
-            limits::event_open::<T>(node, &service_name, settings, &e)
+            Refusal::of_event(&e)
+                .and_then(|r| r.error::<T>(node, &service_name, settings))
                 .unwrap_or_else(|| service_error("event", Box::new(e)))
         })?;
         Ok(Self {
@@ -143,11 +145,14 @@ impl<T: Message> Pair<T> {
         })
     }
 
-    fn port_error<E: std::error::Error + Send + Sync + 'static>(
+    /// Creates one port of the pair with `make`; a refusal becomes an [`OpenError`]
+    /// that names the service and the port (or the setting that ran out).
+    fn port<P, E: std::error::Error + Send + Sync + 'static>(
         &self,
         port: &'static str,
-    ) -> impl FnOnce(E) -> OpenError + '_ {
-        move |e| {
+        make: impl FnOnce(&Self) -> Result<P, E>,
+    ) -> Result<P, OpenError> {
+        make(self).map_err(|e| {
             limits::port(&self.name, &self.pubsub, &self.event, &e).unwrap_or_else(|| {
                 OpenError::Port {
                     service: self.name.clone(),
@@ -155,7 +160,7 @@ impl<T: Message> Pair<T> {
                     source: Box::new(e),
                 }
             })
-        }
+        })
     }
 }
 
@@ -188,16 +193,8 @@ impl<T: Message> Sender<T> {
     }
 
     fn on(pair: Pair<T>) -> Result<Self, OpenError> {
-        let publisher = pair
-            .pubsub
-            .publisher_builder()
-            .create()
-            .map_err(pair.port_error("publisher"))?;
-        let notifier = pair
-            .event
-            .notifier_builder()
-            .create()
-            .map_err(pair.port_error("notifier"))?;
+        let publisher = pair.port("publisher", |p| p.pubsub.publisher_builder().create())?;
+        let notifier = pair.port("notifier", |p| p.event.notifier_builder().create())?;
         Ok(Self {
             publisher,
             notifier,
@@ -284,17 +281,11 @@ impl<T: Message> Receiver<T> {
         // message delivered before the listener exists loses only its wake-up: every
         // receive call looks into the buffer before it waits, and the daemon serves
         // every source once after (re)attaching its listeners.
-        let subscriber = pair
-            .pubsub
-            .subscriber_builder()
-            .buffer_size(ipc.settings().subscriber_buffer_size)
-            .create()
-            .map_err(pair.port_error("subscriber"))?;
-        let listener = pair
-            .event
-            .listener_builder()
-            .create()
-            .map_err(pair.port_error("listener"))?;
+        let buffer = ipc.settings().subscriber_buffer_size;
+        let subscriber = pair.port("subscriber", |p| {
+            p.pubsub.subscriber_builder().buffer_size(buffer).create()
+        })?;
+        let listener = pair.port("listener", |p| p.event.listener_builder().create())?;
         Ok(Self {
             subscriber,
             listener,

@@ -99,64 +99,57 @@ fn mismatch<T: Message>(
 }
 
 /// How an existing service refused to be opened, when it is a limit.
-enum Refusal {
+pub(crate) enum Refusal {
     /// All its node slots are in use.
     NodesFull,
     /// It was created with smaller limits than asked for.
     Smaller,
 }
 
-fn refused<T: Message>(
-    node: &Node<ipc::Service>,
-    service: &ServiceName,
-    s: &ServiceSettings,
-    refusal: Refusal,
-) -> Option<OpenError> {
-    match refusal {
-        Refusal::NodesFull => nodes_full(service, s),
-        Refusal::Smaller => mismatch::<T>(node, service, s),
+impl Refusal {
+    /// The limit behind a publish-subscribe open error, if it is one.
+    pub(crate) fn of_pubsub(e: &PublishSubscribeOpenOrCreateError) -> Option<Self> {
+        use PublishSubscribeOpenError as E;
+        match e {
+            PublishSubscribeOpenOrCreateError::PublishSubscribeOpenError(e) => match e {
+                E::ExceedsMaxNumberOfNodes => Some(Self::NodesFull),
+                E::DoesNotSupportRequestedAmountOfPublishers
+                | E::DoesNotSupportRequestedAmountOfSubscribers
+                | E::DoesNotSupportRequestedAmountOfNodes
+                | E::DoesNotSupportRequestedMinBufferSize => Some(Self::Smaller),
+                _ => None,
+            },
+            _ => None,
+        }
     }
-}
 
-pub(crate) fn pubsub_open<T: Message>(
-    node: &Node<ipc::Service>,
-    service: &ServiceName,
-    s: &ServiceSettings,
-    e: &PublishSubscribeOpenOrCreateError,
-) -> Option<OpenError> {
-    use PublishSubscribeOpenError as E;
-    let PublishSubscribeOpenOrCreateError::PublishSubscribeOpenError(e) = e else {
-        return None;
-    };
-    let refusal = match e {
-        E::ExceedsMaxNumberOfNodes => Refusal::NodesFull,
-        E::DoesNotSupportRequestedAmountOfPublishers
-        | E::DoesNotSupportRequestedAmountOfSubscribers
-        | E::DoesNotSupportRequestedAmountOfNodes
-        | E::DoesNotSupportRequestedMinBufferSize => Refusal::Smaller,
-        _ => return None,
-    };
-    refused::<T>(node, service, s, refusal)
-}
+    /// The limit behind an event open error, if it is one.
+    pub(crate) fn of_event(e: &EventOpenOrCreateError) -> Option<Self> {
+        let EventOpenOrCreateError::EventOpenError(e) = e else {
+            return None;
+        };
+        match e {
+            EventOpenError::ExceedsMaxNumberOfNodes => Some(Self::NodesFull),
+            EventOpenError::DoesNotSupportRequestedAmountOfNotifiers
+            | EventOpenError::DoesNotSupportRequestedAmountOfListeners
+            | EventOpenError::DoesNotSupportRequestedAmountOfNodes => Some(Self::Smaller),
+            _ => None,
+        }
+    }
 
-pub(crate) fn event_open<T: Message>(
-    node: &Node<ipc::Service>,
-    service: &ServiceName,
-    s: &ServiceSettings,
-    e: &EventOpenOrCreateError,
-) -> Option<OpenError> {
-    use EventOpenError as E;
-    let EventOpenOrCreateError::EventOpenError(e) = e else {
-        return None;
-    };
-    let refusal = match e {
-        E::ExceedsMaxNumberOfNodes => Refusal::NodesFull,
-        E::DoesNotSupportRequestedAmountOfNotifiers
-        | E::DoesNotSupportRequestedAmountOfListeners
-        | E::DoesNotSupportRequestedAmountOfNodes => Refusal::Smaller,
-        _ => return None,
-    };
-    refused::<T>(node, service, s, refusal)
+    /// The error that names the limit (the settings that differ, or the node slots),
+    /// `None` if the service's settings cannot be read back.
+    pub(crate) fn error<T: Message>(
+        self,
+        node: &Node<ipc::Service>,
+        service: &ServiceName,
+        s: &ServiceSettings,
+    ) -> Option<OpenError> {
+        match self {
+            Self::NodesFull => nodes_full(service, s),
+            Self::Smaller => mismatch::<T>(node, service, s),
+        }
+    }
 }
 
 /// `e` is one of the four port creation errors; anything else is not a limit.

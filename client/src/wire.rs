@@ -94,40 +94,6 @@ impl VelocitySample {
             _reserved: 0,
         }
     }
-
-    /// Encodes into the wire layout, little-endian, for transports without shared
-    /// memory (files, Zenoh). Identical to the in-memory bytes on little-endian hosts.
-    pub fn to_le_bytes(&self) -> [u8; Self::SIZE] {
-        let mut b = [0u8; Self::SIZE];
-        b[0..8].copy_from_slice(&self.timestamp_ns.to_le_bytes());
-        b[8..16].copy_from_slice(&self.seq.to_le_bytes());
-        b[16..20].copy_from_slice(&self.v_north.to_le_bytes());
-        b[20..24].copy_from_slice(&self.v_east.to_le_bytes());
-        b[24..28].copy_from_slice(&self.v_down.to_le_bytes());
-        b[28..32].copy_from_slice(&self.speed_accuracy.to_le_bytes());
-        b[32..36].copy_from_slice(&self.flags.to_le_bytes());
-        b[36..40].copy_from_slice(&self._reserved.to_le_bytes());
-        b
-    }
-
-    /// Decodes the layout written by [`to_le_bytes`](Self::to_le_bytes).
-    pub fn from_le_bytes(b: &[u8; Self::SIZE]) -> Self {
-        Self {
-            timestamp_ns: u64::from_le_bytes(take(b, 0)),
-            seq: u64::from_le_bytes(take(b, 8)),
-            v_north: f32::from_le_bytes(take(b, 16)),
-            v_east: f32::from_le_bytes(take(b, 20)),
-            v_down: f32::from_le_bytes(take(b, 24)),
-            speed_accuracy: f32::from_le_bytes(take(b, 28)),
-            flags: u32::from_le_bytes(take(b, 32)),
-            _reserved: u32::from_le_bytes(take(b, 36)),
-        }
-    }
-
-    /// Decodes from a slice that must be exactly [`Self::SIZE`] bytes long.
-    pub fn from_le_slice(b: &[u8]) -> Result<Self, CodecError> {
-        Ok(Self::from_le_bytes(exactly(b)?))
-    }
 }
 
 /// Quality of a [`HeadingEstimate`], carried as `u32` in [`HeadingEstimate::status`].
@@ -265,43 +231,6 @@ impl HeadingEstimate {
         out[..end].copy_from_slice(&name.as_bytes()[..end]);
         out
     }
-
-    /// Encodes into the wire layout, little-endian (see [`VelocitySample::to_le_bytes`]).
-    pub fn to_le_bytes(&self) -> [u8; Self::SIZE] {
-        let mut b = [0u8; Self::SIZE];
-        b[0..8].copy_from_slice(&self.timestamp_ns.to_le_bytes());
-        b[8..16].copy_from_slice(&self.seq.to_le_bytes());
-        b[16..24].copy_from_slice(&self.processing_ns.to_le_bytes());
-        b[24..28].copy_from_slice(&self.heading_deg.to_le_bytes());
-        b[28..32].copy_from_slice(&self.heading_std_deg.to_le_bytes());
-        b[32..36].copy_from_slice(&self.atan2_deg.to_le_bytes());
-        b[36..40].copy_from_slice(&self.speed.to_le_bytes());
-        b[40..44].copy_from_slice(&self.model_id.to_le_bytes());
-        b[44..48].copy_from_slice(&self.status.to_le_bytes());
-        b[48..64].copy_from_slice(&self.model_name);
-        b
-    }
-
-    /// Decodes the layout written by [`to_le_bytes`](Self::to_le_bytes).
-    pub fn from_le_bytes(b: &[u8; Self::SIZE]) -> Self {
-        Self {
-            timestamp_ns: u64::from_le_bytes(take(b, 0)),
-            seq: u64::from_le_bytes(take(b, 8)),
-            processing_ns: u64::from_le_bytes(take(b, 16)),
-            heading_deg: f32::from_le_bytes(take(b, 24)),
-            heading_std_deg: f32::from_le_bytes(take(b, 28)),
-            atan2_deg: f32::from_le_bytes(take(b, 32)),
-            speed: f32::from_le_bytes(take(b, 36)),
-            model_id: u32::from_le_bytes(take(b, 40)),
-            status: u32::from_le_bytes(take(b, 44)),
-            model_name: take(b, 48),
-        }
-    }
-
-    /// Decodes from a slice that must be exactly [`Self::SIZE`] bytes long.
-    pub fn from_le_slice(b: &[u8]) -> Result<Self, CodecError> {
-        Ok(Self::from_le_bytes(exactly(b)?))
-    }
 }
 
 /// A byte buffer had the wrong length for the message type being decoded.
@@ -322,10 +251,92 @@ fn exactly<const N: usize>(b: &[u8]) -> Result<&[u8; N], CodecError> {
     })
 }
 
-fn take<const N: usize>(b: &[u8], at: usize) -> [u8; N] {
-    let mut out = [0u8; N];
-    out.copy_from_slice(&b[at..at + N]);
-    out
+/// A field of the wire layout: its little-endian bytes, written and read in place.
+trait LeField: Sized {
+    /// Bytes on the wire.
+    const N: usize;
+    fn put(&self, b: &mut [u8]);
+    fn get(b: &[u8]) -> Self;
+}
+
+macro_rules! le_number {
+    ($($t:ty),*) => {$(
+        impl LeField for $t {
+            const N: usize = std::mem::size_of::<$t>();
+            fn put(&self, b: &mut [u8]) {
+                b[..Self::N].copy_from_slice(&self.to_le_bytes());
+            }
+            fn get(b: &[u8]) -> Self {
+                <$t>::from_le_bytes(b[..Self::N].try_into().expect("N bytes"))
+            }
+        }
+    )*};
+}
+le_number!(u32, u64, f32);
+
+impl<const K: usize> LeField for [u8; K] {
+    const N: usize = K;
+    fn put(&self, b: &mut [u8]) {
+        b[..K].copy_from_slice(self);
+    }
+    fn get(b: &[u8]) -> Self {
+        b[..K].try_into().expect("K bytes")
+    }
+}
+
+/// The little-endian codec of a wire struct from its fields in layout order (the
+/// order of the `#[repr(C)]` declaration, no implicit padding), written once for
+/// both directions.
+macro_rules! le_codec {
+    ($t:ty: $($f:ident),* $(,)?) => {
+        impl $t {
+            /// Encodes into the wire layout, little-endian, for transports without
+            /// shared memory (files, Zenoh). Identical to the in-memory bytes on
+            /// little-endian hosts.
+            pub fn to_le_bytes(&self) -> [u8; Self::SIZE] {
+                let mut b = [0u8; Self::SIZE];
+                let mut at = 0;
+                $(
+                    LeField::put(&self.$f, &mut b[at..]);
+                    at += field_len(&self.$f);
+                )*
+                debug_assert_eq!(at, Self::SIZE);
+                b
+            }
+
+            /// Decodes the layout written by [`to_le_bytes`](Self::to_le_bytes).
+            pub fn from_le_bytes(b: &[u8; Self::SIZE]) -> Self {
+                let mut at = 0;
+                let v = Self {
+                    $($f: {
+                        let v = LeField::get(&b[at..]);
+                        at += field_len(&v);
+                        v
+                    },)*
+                };
+                debug_assert_eq!(at, Self::SIZE);
+                v
+            }
+
+            /// Decodes from a slice that must be exactly [`Self::SIZE`] bytes long.
+            pub fn from_le_slice(b: &[u8]) -> Result<Self, CodecError> {
+                Ok(Self::from_le_bytes(exactly(b)?))
+            }
+        }
+    };
+}
+
+/// Bytes of a field on the wire (type inference picks the field's [`LeField`]).
+fn field_len<T: LeField>(_: &T) -> usize {
+    T::N
+}
+
+le_codec! {
+    VelocitySample: timestamp_ns, seq, v_north, v_east, v_down, speed_accuracy, flags, _reserved
+}
+le_codec! {
+    HeadingEstimate: timestamp_ns, seq, processing_ns, heading_deg, heading_std_deg, atan2_deg,
+    speed, model_id, status, model_name
 }
 
 #[cfg(test)]

@@ -28,12 +28,13 @@ def open_services(iox2, node, name: str, payload):
     return pubsub, event
 
 
-def loopback_config(zenoh, connect: str):
-    """A Zenoh config like ghnet's `peer_config`: a peer that connects to `connect`
-    (ghnetd's zenoh.listen), listens nowhere, no multicast scouting, no gossip. Zenoh's
-    defaults would listen on every interface and announce themselves by multicast."""
+def loopback_config(zenoh, connect: str, mode: str = "peer"):
+    """A Zenoh config like ghnet's `peer_config`: a peer (or a `mode="client"` of a
+    router) that connects to `connect` (ghnetd's zenoh.listen, or the router), listens
+    nowhere, no multicast scouting, no gossip. Zenoh's defaults would listen on every
+    interface and announce themselves by multicast."""
     conf = zenoh.Config()
-    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("mode", json.dumps(mode))
     conf.insert_json5("connect/endpoints", json.dumps([connect]))
     conf.insert_json5("listen/endpoints", "[]")
     conf.insert_json5("scouting/multicast/enabled", "false")

@@ -170,19 +170,24 @@ fn a_stopped_car_is_held_with_a_growing_sigma() {
     );
 }
 
+/// `n` simulated drives of `secs` seconds each, a share of them slow platforms.
+fn drives(n: usize, platform_share: f64, secs: f64, seed: u64) -> Vec<ghnet_lab::drive::Track> {
+    let params = DriveParams {
+        tracks: n,
+        platform_share,
+        track_min_s: secs,
+        track_max_s: secs,
+        ..DriveParams::default()
+    };
+    simulate(&params, seed)
+}
+
 /// (2) The daemon's headings for a simulated drive (stops, reversing, fix gaps, a
 /// receiver with or without speed accuracy) equal the in-process `StreamPredictor`'s
 /// for the same stream, bit for bit: for the shipped default and for `kf`.
 #[test]
 fn daemon_equals_in_process_stream_predictor_bit_for_bit() {
-    let params = DriveParams {
-        tracks: 2,
-        platform_share: 0.0,
-        track_min_s: 60.0,
-        track_max_s: 60.0,
-        ..DriveParams::default()
-    };
-    let tracks = simulate(&params, 14);
+    let tracks = drives(2, 0.0, 60.0, 14);
     let (default, flag) = stateful_model();
     let kf = Arc::new(Model::builtin("kf").unwrap());
     for (model, flag) in [(default, flag), (kf, Some("kf"))] {
@@ -368,14 +373,7 @@ fn interleaved_sources_keep_separate_histories() {
 /// to the bit, what an in-process `StreamPredictor` gives that source alone, in order.
 #[test]
 fn sources_answered_together_equal_each_alone_bit_for_bit() {
-    let params = DriveParams {
-        tracks: 6,
-        platform_share: 0.3,
-        track_min_s: 30.0,
-        track_max_s: 30.0,
-        ..DriveParams::default()
-    };
-    let tracks = simulate(&params, 21);
+    let tracks = drives(6, 0.3, 30.0, 21);
     let names: Vec<String> = (0..tracks.len()).map(|k| format!("burst{k}")).collect();
     let ns = TestNamespace::new("passes");
     let b = (names.iter())

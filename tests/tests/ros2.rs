@@ -15,7 +15,7 @@
 
 use std::io::{BufRead, BufReader};
 use std::os::unix::process::CommandExt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -320,23 +320,11 @@ fn rclpy_hears_every_answer_as_imu_with_the_status_rules_and_diagnostics() {
             FRAME_ID,
         ],
     );
-    let mut listener = Proc::spawn(
-        Command::new("ip")
-            .args(["netns", "exec", host.name(), "python3"])
-            .arg(listener_script())
-            .args(["--imu", FRONT.1, "--imu", SECOND.1, "--diagnostics"])
-            .env("ROS_DOMAIN_ID", DOMAIN_ID)
-            .env("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped()),
-    );
-    let lines = lines_of(&mut listener.0);
-    let ready = lines.recv_timeout(WATCHDOG).expect("rclpy listener ready");
-    assert_eq!(
-        ready,
-        "ready",
-        "{}",
-        std::fs::read_to_string(&log).unwrap_or_default()
+    let (_listener, lines) = spawn_listener(
+        &host,
+        DOMAIN_ID,
+        &["--imu", FRONT.1, "--imu", SECOND.1, "--diagnostics"],
+        &log,
     );
     let mut heard = Heard::default();
 
@@ -703,11 +691,12 @@ fn spawn_bridge(
 }
 
 /// Starts the rclpy listener in `host` on `domain` with `args`; its lines after
-/// `ready`.
+/// `ready`. If it is not ready in time, the bridge's log (`bridge_log`) says why.
 fn spawn_listener(
     host: &NetNamespace,
     domain: &str,
     args: &[&str],
+    bridge_log: &Path,
 ) -> (Proc, mpsc::Receiver<String>) {
     let mut p = Proc::spawn(
         Command::new("ip")
@@ -721,7 +710,8 @@ fn spawn_listener(
     );
     let lines = lines_of(&mut p.0);
     let ready = lines.recv_timeout(WATCHDOG).expect("rclpy listener ready");
-    assert_eq!(ready, "ready");
+    let why = || std::fs::read_to_string(bridge_log).unwrap_or_default();
+    assert_eq!(ready, "ready", "{}", why());
     (p, lines)
 }
 
@@ -787,12 +777,14 @@ fn a_bridge_before_ghnetd_finds_the_source_survives_a_kill_and_a_stuck_reader() 
             "--wait-for",
             "/diagnostics",
         ],
+        &log,
     );
     // A reader that never reads: it must slow nobody.
     let (_stuck, _) = spawn_listener(
         &host,
         "19",
         &["--imu", TOPIC, "--stuck", "--wait-for", "/diagnostics"],
+        &log,
     );
     let mut heard = Heard::default();
     let empty = await_diagnostics(&mut heard, &lines, "diagnostics without ghnetd", |_| true);

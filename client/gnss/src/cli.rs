@@ -5,7 +5,6 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::Parser;
 use ghnet_client::cli::IpcArgs;
-use ghnet_client::IpcConfig;
 use ghnet_receivers::Format;
 
 use crate::{Backoff, Config, Input, Output};
@@ -101,16 +100,12 @@ impl Args {
             output: if self.print {
                 Output::Print
             } else {
-                Output::Publish(Box::new(self.ipc()?))
+                Output::Publish(Box::new(self.ipc.ipc()?))
             },
             wait_for_daemon: seconds(self.wait_for_daemon, "--wait-for-daemon")?,
             answer_timeout: seconds(self.answer_timeout, "--answer-timeout")?,
             backoff,
         })
-    }
-
-    fn ipc(&self) -> anyhow::Result<IpcConfig> {
-        Ok(self.ipc.ipc()?)
     }
 }
 
@@ -119,9 +114,7 @@ mod tests {
     use super::*;
 
     fn args(line: &[&str]) -> anyhow::Result<Config> {
-        let mut argv = vec!["ghnet-gnss"];
-        argv.extend_from_slice(line);
-        Args::try_parse_from(argv)?.to_config()
+        Args::try_parse_from([&["ghnet-gnss"], line].concat())?.to_config()
     }
 
     #[test]

@@ -7,36 +7,7 @@ use clap::Parser;
 use ghnet_gnss::cli::Args;
 
 fn main() -> ExitCode {
-    // iceoryx2 logs through its own console logger; the bridge reports what matters.
-    ghnet_client::iceoryx2::prelude::set_log_level_from_env_or(
-        ghnet_client::iceoryx2::prelude::LogLevel::Error,
-    );
-    let args = Args::parse();
-    // Logs on stderr, so `--print` output on stdout stays clean.
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .init();
-    let config = match args.to_config() {
-        Ok(c) => c,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            return ExitCode::FAILURE;
-        }
-    };
-    // iceoryx2 captures SIGINT/SIGTERM as soon as it is in use, so Ctrl-C only sets
-    // a flag: the latch installs the handlers now, before anything blocks.
-    let latch = ghnet_client::StopLatch::new();
-    let stop = || latch.poll(|| tracing::info!("stop requested"));
-    match ghnet_gnss::run(&config, &stop) {
-        Ok(_) => ExitCode::SUCCESS,
-        Err(e) => {
-            tracing::error!("{e:#}");
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    let config = Args::parse().to_config();
+    ghnet_client::cli::init_logs("info");
+    ghnet_client::cli::run_bridge(config, ghnet_gnss::run)
 }

@@ -3,7 +3,6 @@
 use anyhow::Context;
 use clap::Parser;
 use ghnet_client::cli::IpcArgs;
-use ghnet_client::IpcConfig;
 
 use crate::names::{check_domain_id, check_frame_id, TopicMap};
 use crate::{Config, Rmw};
@@ -59,12 +58,8 @@ impl Args {
             frame_id: self.frame_id.clone(),
             rmw: self.rmw,
             zenoh_router: self.zenoh_router.clone(),
-            ipc: self.ipc()?,
+            ipc: self.ipc.ipc()?,
         })
-    }
-
-    fn ipc(&self) -> anyhow::Result<IpcConfig> {
-        Ok(self.ipc.ipc()?)
     }
 }
 
@@ -73,9 +68,7 @@ mod tests {
     use super::*;
 
     fn args(line: &[&str]) -> anyhow::Result<Config> {
-        let mut argv = vec!["ghnet-ros2"];
-        argv.extend_from_slice(line);
-        Args::try_parse_from(argv)?.to_config()
+        Args::try_parse_from([&["ghnet-ros2"], line].concat())?.to_config()
     }
 
     #[test]

@@ -14,11 +14,17 @@ and on a line `tokens` on stdin, one line {"tokens": [...]} with every livelines
 under @ros2_lv/DOMAIN. Exits when stdin closes.
 """
 import json
+import pathlib
 import sys
 import threading
 
 import zenoh
 from rosbags.typesys import Stores, get_typestore
+
+# The examples' Zenoh config (no multicast, no listening): the Python client's, not
+# the bridge's.
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3] / "examples" / "python"))
+from ghnet_wire import loopback_config  # noqa: E402
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -59,13 +65,8 @@ def msgtype_of(dds_name):
 
 def main():
     router, domain = sys.argv[1], sys.argv[2]
-    conf = zenoh.Config()
     # A client of the router, as the bridge: a router routes to its clients.
-    conf.insert_json5("mode", '"client"')
-    conf.insert_json5("connect/endpoints", json.dumps([router]))
-    conf.insert_json5("listen/endpoints", "[]")
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("scouting/gossip/enabled", "false")
+    conf = loopback_config(zenoh, router, mode="client")
     lock = threading.Lock()
 
     def emit(obj):

@@ -655,6 +655,14 @@ mod tests {
         Model::from_bytes("kf", &bytes).expect("kf round trip")
     }
 
+    /// The shipped default's stream, a fresh history and a seeded generator.
+    fn temporal(seed: u64) -> (StreamPredictor, History, rand_chacha::ChaCha8Rng) {
+        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
+        let sp = StreamPredictor::new(model);
+        let h = sp.history();
+        (sp, h, rand_chacha::ChaCha8Rng::seed_from_u64(seed))
+    }
+
     fn drive(n: usize) -> Vec<Epoch> {
         (0..n)
             .map(|i| {
@@ -864,10 +872,7 @@ mod tests {
     /// with a σ that never shrinks while it stands, and drives off again `Ok`.
     #[test]
     fn ghnet_temporal_holds_a_stopped_car_with_a_sigma_that_never_shrinks() {
-        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
-        let mut sp = StreamPredictor::new(model);
-        let mut h = sp.history();
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let (mut sp, mut h, mut rng) = temporal(7);
         // Uniform in ±0.0866 m/s: σ = 0.05 m/s per axis.
         let mut noise = move || rng.random_range(-0.0866f32..0.0866);
         let mut ep = |i: usize, speed: f32| Epoch {
@@ -905,10 +910,7 @@ mod tests {
     /// would fuse it again each time.
     #[test]
     fn a_noisy_receiver_at_rest_is_held_not_ok() {
-        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
-        let mut sp = StreamPredictor::new(model);
-        let mut h = sp.history();
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let (mut sp, mut h, mut rng) = temporal(5);
         let mut noise = move |sigma: f32| rng.random_range(-1.732 * sigma..1.732 * sigma);
         let mut ep = |i: usize, speed: f32, sigma: f32| Epoch {
             t_s: i as f64 * 0.2,
@@ -952,10 +954,7 @@ mod tests {
     fn ghnet_temporal_holds_a_parked_car_through_noise_and_glitch_bursts() {
         use rand_chacha::ChaCha8Rng;
         use std::f32::consts::TAU;
-        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
-        let mut sp = StreamPredictor::new(model);
-        let mut h = sp.history();
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let (mut sp, mut h, mut rng) = temporal(11);
         let dir = 45f32.to_radians();
         let mut t = 0.0;
         let mut next =
