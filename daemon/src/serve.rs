@@ -183,6 +183,11 @@ impl Daemon {
         };
         let node = open_node(&iox_config)?;
         let budget = Budget::measure(&config, &ipc);
+        let runner = Runner::new(
+            model.clone(),
+            config.status_policy(),
+            config.history.max_gap_s,
+        );
         info!(
             prefix = %config.ipc.service_prefix,
             model = %model.name(),
@@ -192,7 +197,7 @@ impl Daemon {
             discovery_interval_ms = config.sources.discovery_interval_ms,
             stale_after_ms = config.sources.stale_after_ms,
             stateful = model.is_stateful(),
-            history_max_gap_s = ?config.history.max_gap_s.or(model.meta().kind.max_gap_s().map(f64::from)),
+            history_max_gap_s = ?runner.max_gap_s(),
             platform = %config.model.platform.unwrap_or(model.meta().kind.default_platform()),
             lock = %lock.path().display(),
             "ghnetd starting"
@@ -202,7 +207,7 @@ impl Daemon {
                 id: model.id(),
                 name: HeadingEstimate::encode_model_name(model.name()),
             },
-            runner: Runner::new(model, config.status_policy(), config.history.max_gap_s),
+            runner,
             batch: Batch::new(BATCH),
             wake: Wake::default(),
             next_stats: config.stats_interval().map(|i| Instant::now() + i),

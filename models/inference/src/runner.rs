@@ -14,7 +14,7 @@ use crate::model::Model;
 use crate::prediction::{Prediction, StatusPolicy};
 use crate::predictor::Predictor;
 use crate::source::{Admission, Sample, SourceStream};
-use crate::stream::{Platform, Staged, StreamBatch, StreamPredictor};
+use crate::stream::{model_max_gap_s, Platform, Staged, StreamBatch, StreamPredictor};
 
 /// Most epochs in one staged pass: one per source that woke, up to ghnetd's default
 /// source limit; more wait for the next pass.
@@ -77,9 +77,17 @@ impl Runner {
         }
     }
 
-    /// The gap limit histories use, seconds (`None` for a per-epoch model).
+    /// The gap limit histories use, seconds (`None` for a per-epoch model): the
+    /// replacement given to [`new`](Self::new), else the model's own.
     pub fn max_gap_s(&self) -> Option<f64> {
-        self.stream(None).history().map(|h| h.max_gap_s())
+        match self {
+            Runner::Epoch(_) => None,
+            Runner::Stream {
+                predictor,
+                max_gap_s,
+                ..
+            } => Some(max_gap_s.unwrap_or_else(|| model_max_gap_s(predictor.model()))),
+        }
     }
 
     /// Sample `s` of the source whose stream is `src`, answered.

@@ -106,6 +106,12 @@ pub struct History {
     platform: Platform,
 }
 
+/// The gap limit a history of `model` uses unless told otherwise, seconds (no limit
+/// for a model without one).
+pub(crate) fn model_max_gap_s(model: &Model) -> f64 {
+    model.meta().kind.max_gap_s().unwrap_or(f32::INFINITY) as f64
+}
+
 impl History {
     /// An empty history sized for `model`, with the model's gap limit.
     pub fn new(model: &Model) -> Self {
@@ -120,7 +126,7 @@ impl History {
             window,
             newest: 0,
             filled: 0,
-            max_gap_s: model.meta().kind.max_gap_s().unwrap_or(f32::INFINITY) as f64,
+            max_gap_s: model_max_gap_s(model),
             resets: ResetCounts::default(),
             last_reset: None,
             platform: Platform::Auto,
