@@ -53,7 +53,11 @@ pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
     let (psi, var, gain) = if step.hold {
         (step.prior, cap * cap, 0.0)
     } else {
-        let reverse = logit > 0.0;
+        let reverse = if st.vehicle.car {
+            logit > 0.0
+        } else {
+            step.rule_reverse
+        };
         let z = step.course + if reverse { std::f32::consts::PI } else { 0.0 };
         let d = wrap_rad(z - step.prior);
         st.t_mode = if reverse != st.reverse {

@@ -9,7 +9,9 @@
 //!   The filter keeps a *mode* (forward or reversing) and measures `course + π·mode`.
 //!   Two escapes keep a wrong mode from lasting: a car never reverses at sustained speed
 //!   (above `escape_speed`, the mode ends and the heading turns by 180°), and a vehicle
-//!   that has not yet shown car-like speed has no reverse mode at all (next point).
+//!   that has not yet shown car-like speed has no reverse mode at all (next point), nor
+//!   does the network's reverse correction give it one: a platform that turned in place
+//!   at a stop and drives off the other way is driving forward.
 //! * **Cars do not turn in place; platforms do.** A vehicle counts as a car once it has
 //!   driven above `fast_speed` for `fast_secs` and `FAST_EPOCHS` epochs (kept across fix gaps: it is the same
 //!   vehicle). Until then it is treated as a platform that turns in place: its heading
@@ -62,6 +64,7 @@ pub use vehicle::{Platform, Vehicle, FAST_EPOCHS};
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::head::wrap_rad;
 
     /// One 1 Hz epoch with sAcc 0.3 m/s through the filter alone (zero network outputs).
     fn epoch(st: &mut StepState, speed: f32) {
@@ -121,5 +124,35 @@ mod tests {
         assert!(st.yaw < 0.0, "a left turn is negative: {st:?}");
         along(&mut st, 0.01, 0.0);
         assert_eq!(st.yaw, 0.0, "standing");
+    }
+
+    /// A robot that drove north, spun in place and drives south is driving forward:
+    /// however sure the network is that the course reversed, a vehicle not known to
+    /// be a car answers along its course. A car that does the same is reversing when
+    /// the network says so.
+    #[test]
+    fn only_a_car_reverses_on_the_networks_word() {
+        let mp = ModeParams::default();
+        for car in [false, true] {
+            let mut st = StepState::fresh(if car { Platform::Car } else { Platform::Robot });
+            along(&mut st, 0.0, 0.0);
+            for _ in 0..10 {
+                along(&mut st, 1.5, 0.0);
+            }
+            for _ in 0..5 {
+                along(&mut st, 0.0, 0.0);
+            }
+            let step = prepare(&mp, 0.5, &mut st, -1.5, 0.0, 0.1, 1.0);
+            let d = commit(&mut st, &step, &[0.0, 20.0, 0.0], 1.0);
+            let off = wrap_rad(d.psi - std::f32::consts::PI).abs().to_degrees();
+            if car {
+                assert!(st.reverse && off > 170.0, "a car reverses: {off}° {st:?}");
+            } else {
+                assert!(
+                    !st.reverse && off < 10.0,
+                    "a robot drives on: {off}° {st:?}"
+                );
+            }
+        }
     }
 }
