@@ -150,12 +150,17 @@ pub fn advance(
 /// network's `y2` of the last moving epoch (held in the state), not by each standing
 /// epoch's (trained on noise it cannot see through, it would only make σ jitter).
 /// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
-/// A car moving at speed then gains the turn term ([`crate::modes::SigmaMaps::with_turn`]).
-/// A moving epoch's σ is at least the course scatter the source has shown at speed
-/// over the speed ([`crate::modes::SigmaMaps::scatter_k`]) when that scatter exceeds
+/// A car moving at speed then gains the turn term, a platform moving its share of it
+/// ([`crate::modes::SigmaMaps::with_turn`]).
+/// A car or platform moving at [`crate::modes::TURN_SPEED`] or faster has a σ of at
+/// least the course scatter the source has shown at speed over the speed
+/// ([`crate::modes::SigmaMaps::scatter_k`]) when that scatter exceeds
 /// the velocity noise the filter assumes (a receiver without sAcc, whose noise the
 /// filter can only guess) or [`crate::modes::SCATTER_RATIO_ACC`] times it (a
-/// receiver whose sAcc understates its noise by that much).
+/// receiver whose sAcc understates its noise by that much). Slower, the filter
+/// averages several courses and the class map's σ, nearly flat in the raw σ there,
+/// already spans the receivers' noise: a floor of one course's noise over-covered the
+/// slow epochs of the shared real drive (models/reports/car-nagoya.md).
 ///
 /// A misread direction is not added as a variance: it is a 180° jump, not a spread,
 /// and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior) swamped the
@@ -197,7 +202,7 @@ pub fn reported_sigma(
     if moved
         && maps.scatter_k > 0.0
         && scatter.is_finite()
-        && step.speed > 0.0
+        && step.speed >= crate::modes::TURN_SPEED
         && scatter.sqrt() > ratio * step.sigma_v
     {
         let floor = (maps.scatter_k * scatter.sqrt() / step.speed).to_degrees();

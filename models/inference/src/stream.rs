@@ -1226,4 +1226,69 @@ mod tests {
         assert!(with >= 0.9, "with the floor {with}");
         assert!(without < 0.9, "without it {without}");
     }
+
+    /// The shipped model and the same model without the scatter floor.
+    fn with_and_without_floor() -> (Model, Model) {
+        let shipped = Model::builtin("ghnet-temporal").expect("built in");
+        let mut meta = shipped.meta().clone();
+        if let ModelKind::Temporal { sigma_map, .. } = &mut meta.kind {
+            sigma_map.scatter_k = 0.0;
+        }
+        let without = Model::new(shipped.params().clone(), meta);
+        (shipped, without)
+    }
+
+    /// A 1 Hz car on a straight at 10 m/s whose receiver reports sAcc `acc` (m/s)
+    /// while its velocity noise is uniform in `±half` per axis: the share of errors
+    /// within 2σ after the first two minutes, and the median σ there (degrees).
+    fn straight_at_1hz(model: Model, acc: f32, half: f32) -> (f64, f32) {
+        let mut sp = StreamPredictor::new(Arc::new(model)).with_platform(Some(Platform::Car));
+        let mut h = sp.history();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let (mut within, mut stds) = (0, Vec::new());
+        let truth = 0.8f32.atan2(0.6).to_degrees();
+        for i in 0..1200 {
+            let n = [rng.random_range(-half..half), rng.random_range(-half..half)];
+            let e = Epoch {
+                t_s: i as f64,
+                v_north: 10.0 * 0.6 + n[0],
+                v_east: 10.0 * 0.8 + n[1],
+                speed_acc: acc,
+            };
+            let p = sp.predict(&mut h, &e);
+            if i >= 120 {
+                let err = (p.heading_deg - truth + 540.0).rem_euclid(360.0) - 180.0;
+                within += usize::from(err.abs() <= 2.0 * p.std_deg);
+                stds.push(p.std_deg);
+            }
+        }
+        stds.sort_by(f32::total_cmp);
+        (within as f64 / stds.len() as f64, stds[stds.len() / 2])
+    }
+
+    /// A 1 Hz receiver whose sAcc (0.05 m/s) understates its velocity noise (0.4 m/s
+    /// per axis) eight times: the floor learned from its courses' disagreement at
+    /// speed covers 90% of errors within 2σ; without it σ claims too much.
+    #[test]
+    fn the_scatter_floor_covers_a_1hz_receiver_that_understates_its_noise() {
+        let (shipped, without) = with_and_without_floor();
+        let (with, _) = straight_at_1hz(shipped, 0.05, 0.69);
+        let (without, _) = straight_at_1hz(without, 0.05, 0.69);
+        assert!(with >= 0.9, "with the floor {with}");
+        assert!(without < 0.9, "without it {without}");
+    }
+
+    /// A 1 Hz receiver without sAcc whose noise (0.1 m/s per axis) is within what the
+    /// filter guesses for such receivers: the courses' disagreement, the extrapolated
+    /// prediction's own noise taken out, stays under the floor's bar and σ is the
+    /// maps' alone. (Taken whole, the residual would read two and a half times the
+    /// noise and inflate σ.)
+    #[test]
+    fn a_clean_1hz_receiver_keeps_its_sigma() {
+        let (shipped, without) = with_and_without_floor();
+        let (cover, with) = straight_at_1hz(shipped, f32::NAN, 0.173);
+        let (_, alone) = straight_at_1hz(without, f32::NAN, 0.173);
+        assert_eq!(with, alone, "median σ");
+        assert!(cover >= 0.9, "covered {cover}");
+    }
 }

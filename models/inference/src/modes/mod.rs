@@ -56,8 +56,14 @@ pub use prepare::prepare;
 pub use release::{
     RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_NOISE_CAP, RELEASE_S, RELEASE_SPEED,
 };
-pub use scatter::{SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SPEED, SCATTER_TAU_S};
-pub use sigma::{clean, SigmaMap, SigmaMaps, CLEAN_NOISE_RATIO, SIGMA_KNOTS, TURN_SPEED};
+pub use scatter::{
+    extrapolation_share, SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED,
+    SCATTER_TAU_S,
+};
+pub use sigma::{
+    clean, SigmaMap, SigmaMaps, CLEAN_NOISE_RATIO, PLATFORM_TURN_SHARE, PLATFORM_TURN_SPEED,
+    SIGMA_KNOTS, TURN_SPEED,
+};
 pub use state::{Step, StepState};
 pub use vehicle::{Platform, Vehicle, FAST_EPOCHS};
 

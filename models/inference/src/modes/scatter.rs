@@ -1,6 +1,7 @@
 //! The course scatter a source shows at speed, the floor under a moving epoch's σ for
 //! receivers noisier than they say.
 
+use super::commit::YAW_TAU_S;
 use super::state::StepState;
 use crate::head::wrap_rad;
 
@@ -10,12 +11,19 @@ use crate::head::wrap_rad;
 /// [`Vehicle::scatter`]: crate::modes::Vehicle::scatter
 pub const SCATTER_SPEED: f32 = 3.0;
 
-/// Longest epoch interval (s) whose course feeds [`Vehicle::scatter`]: over a longer
-/// one the vehicle's own turning (a junction at 1 Hz) outweighs the receiver's noise,
-/// and a floor built on it doubled a 1 Hz car's σ on straights.
+/// Longest epoch interval (s) over which the filter averages several courses, so that
+/// its prediction is smooth beside one course's noise. Over a longer interval (a 1 Hz
+/// receiver) the filter follows each course and its prediction, the previous heading
+/// turned at the yaw rate, extrapolates the last two courses: their noise is in the
+/// residual too, and [`update_scatter`] takes it out ([`extrapolation_share`]).
+pub const SCATTER_SMOOTH_DT: f32 = 0.55;
+
+/// Longest epoch interval (s) whose course feeds [`Vehicle::scatter`]: a 1 Hz
+/// receiver's with its jitter. After a missed epoch the vehicle's own turning (a
+/// junction) outweighs the receiver's noise.
 ///
 /// [`Vehicle::scatter`]: crate::modes::Vehicle::scatter
-pub const SCATTER_MAX_DT: f32 = 0.55;
+pub const SCATTER_MAX_DT: f32 = 1.5;
 
 /// How many times the σ_v from its sAcc a receiver's course scatter must reach for the
 /// scatter floor to apply ([`SigmaMaps::scatter_k`]): the σ maps are fitted on
@@ -33,9 +41,25 @@ pub const SCATTER_RATIO_ACC: f32 = 3.0;
 /// [`Vehicle::scatter`]: crate::modes::Vehicle::scatter
 pub const SCATTER_TAU_S: f32 = 30.0;
 
+/// How many times one course's noise variance the residual against the prediction
+/// carries over an interval of `dt` s. At most [`SCATTER_SMOOTH_DT`] the prediction is
+/// smooth: 1. Over longer intervals the heading is the last course `c₁` and the yaw
+/// rate moved by `a = min(dt/YAW_TAU_S, 1)` of the last change `c₁ − c₂`, so the
+/// residual is `c₀ − (1+a)·c₁ + a·c₂`: `1 + (1+a)² + a²` courses' worth of white noise
+/// (6 at 1 Hz).
+#[inline]
+pub fn extrapolation_share(dt: f32) -> f32 {
+    if dt <= SCATTER_SMOOTH_DT {
+        return 1.0;
+    }
+    let a = (dt / YAW_TAU_S).min(1.0);
+    1.0 + (1.0 + a) * (1.0 + a) + a * a
+}
+
 /// Feed [`Vehicle::scatter`] with this epoch's course against the previous heading
 /// turned at the yaw rate, when both epochs moved at speed (no stop, gap or glitch in
-/// between: `t_still` and `prev_speed` say so) and not in reverse.
+/// between: `t_still` and `prev_speed` say so) and not in reverse, as one course's
+/// share of the residual ([`extrapolation_share`]).
 ///
 /// [`Vehicle::scatter`]: crate::modes::Vehicle::scatter
 #[inline]
@@ -53,11 +77,52 @@ pub(super) fn update_scatter(st: &mut StepState, vn: f32, ve: f32, dt: f32) {
     }
     let e = wrap_rad(ve.atan2(vn) - (st.psi + st.yaw * dt));
     // A glitch or a misread direction is not scatter: cap one epoch's share.
-    let x = (speed * e.sin()).powi(2).min(1.0);
+    let x = (speed * e.sin()).powi(2).min(1.0) / extrapolation_share(dt);
     let v = &mut st.vehicle.scatter;
     *v = if v.is_finite() {
         *v + (dt / SCATTER_TAU_S).min(1.0) * (x - *v)
     } else {
         x
     };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The residual's share is one course where the filter smooths and six at 1 Hz
+    /// (`c₀ − 2c₁ + c₂`), growing in between.
+    #[test]
+    fn extrapolation_share_counts_the_courses_in_the_residual() {
+        assert_eq!(extrapolation_share(0.1), 1.0);
+        assert_eq!(extrapolation_share(SCATTER_SMOOTH_DT), 1.0);
+        assert!((extrapolation_share(1.0) - 6.0).abs() < 1e-6);
+        assert!((extrapolation_share(1.4) - 6.0).abs() < 1e-6);
+        let mid = extrapolation_share(0.8);
+        assert!(mid > 4.0 && mid < 6.0, "{mid}");
+    }
+
+    /// On a straight at 1 Hz the scatter measures one course's noise across the track:
+    /// white courses of σ 0.01 rad at 10 m/s (0.1 m/s across) read as about 0.1 m/s
+    /// once the residual's extrapolated share is taken out.
+    #[test]
+    fn scatter_at_1hz_reads_one_course() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut st = StepState::EMPTY;
+        let (mut c1, mut c2) = (0.0f32, 0.0f32);
+        for _ in 0..2000 {
+            // Uniform in ±√3σ: σ = 0.01 rad.
+            let c0: f32 = rng.random_range(-0.01732f32..0.01732);
+            // The filter following each course, the yaw rate the last change.
+            st.has_prior = true;
+            st.prev_speed = 10.0;
+            st.psi = c1;
+            st.yaw = c1 - c2;
+            update_scatter(&mut st, 10.0 * c0.cos(), 10.0 * c0.sin(), 1.0);
+            (c2, c1) = (c1, c0);
+        }
+        let across = st.vehicle.scatter.sqrt();
+        assert!((0.07..0.13).contains(&across), "{across} m/s");
+    }
 }

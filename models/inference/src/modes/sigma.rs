@@ -155,27 +155,54 @@ impl SigmaMaps {
 
     /// The reported σ (degrees) of an epoch of class `car` whose class map gave
     /// `mapped_deg`, at yaw rate `yaw` (rad/s): for a car moving at [`TURN_SPEED`] or
-    /// faster, the turn term added in quadrature and mapped again. Slower epochs and
-    /// standing ones take their class map's σ as it is: there the speed sets the error
-    /// (and a held heading's turn is over); so do other vehicles (see `car_turn`).
+    /// faster, the turn term added in quadrature and mapped again. Slower cars and
+    /// standing epochs take their class map's σ as it is: there the speed sets the error
+    /// (and a held heading's turn is over). Other vehicles moving get
+    /// [`PLATFORM_TURN_SHARE`] of the term from [`PLATFORM_TURN_SPEED`], added in
+    /// quadrature and not mapped again (see `car_turn`).
     pub fn with_turn(&self, car: bool, moving: bool, speed: f32, mapped_deg: f32, yaw: f32) -> f32 {
-        if !car || !moving || speed < TURN_SPEED || self.yaw_s <= 0.0 || !yaw.is_finite() {
+        if !moving || self.yaw_s <= 0.0 || !yaw.is_finite() {
             return mapped_deg;
         }
-        let sum = mapped_deg.hypot(self.yaw_s * yaw.abs().to_degrees());
-        self.car_turn.apply(sum)
+        let term = self.yaw_s * yaw.abs().to_degrees();
+        if !car {
+            if speed < PLATFORM_TURN_SPEED {
+                return mapped_deg;
+            }
+            return mapped_deg.hypot(PLATFORM_TURN_SHARE * term);
+        }
+        if speed < TURN_SPEED {
+            return mapped_deg;
+        }
+        self.car_turn.apply(mapped_deg.hypot(term))
     }
 }
+
+/// Share of the turn term ([`SigmaMaps::yaw_s`]) a vehicle not known to be a car gets
+/// while it moves. A course trails a turning heading by the receiver's lag whatever
+/// carries it, and the platform map, fitted on all turn rates pooled, leaves a
+/// platform that turns as it drives under-covered in its turns and over-covered on
+/// straights (the robots' speed rows of models/reports/unmet.md). `yaw_s` is
+/// fitted on cars, whose course also leads the heading by the antenna's lever arm
+/// in a curve (the antenna a metre or two ahead of the rear axle); a platform's
+/// antenna sits near its turning centre, which leaves about the lag's share.
+pub const PLATFORM_TURN_SHARE: f32 = 0.5;
+
+/// Speed (m/s) from which a moving platform's σ gets its share of the turn term:
+/// slower, the course's noise over the speed reads as turning in the yaw rate, and the
+/// map's σ, large there, already covers the turns.
+pub const PLATFORM_TURN_SPEED: f32 = 1.0;
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
     /// The turn term grows the σ of a car moving at speed in quadrature (identity turn
-    /// map: the sum as it is) and leaves slow and standing epochs, other vehicles and
-    /// older files (no term) alone.
+    /// map: the sum as it is) and leaves slow and standing cars and older files (no
+    /// term) alone; a platform moving at [`PLATFORM_TURN_SPEED`] or faster gets its
+    /// share of the term, unmapped.
     #[test]
-    fn turn_term_adds_in_quadrature_for_cars_at_speed_only() {
+    fn turn_term_adds_in_quadrature_for_moving_vehicles() {
         let ten = 10f32.to_radians();
         let maps = SigmaMaps {
             yaw_s: 0.4,
@@ -183,12 +210,15 @@ mod tests {
         };
         assert!((maps.with_turn(true, true, 8.0, 3.0, ten) - 5.0).abs() < 1e-4);
         assert!((maps.with_turn(true, true, 8.0, 3.0, -ten) - 5.0).abs() < 1e-4);
-        assert_eq!(maps.with_turn(false, true, 8.0, 3.0, ten), 3.0, "not a car");
         assert_eq!(maps.with_turn(true, true, 1.5, 3.0, ten), 3.0, "slow");
         assert_eq!(maps.with_turn(true, false, 8.0, 3.0, ten), 3.0, "standing");
         assert_eq!(
             SigmaMaps::default().with_turn(true, true, 8.0, 3.0, ten),
             3.0
         );
+        let platform = 3f32.hypot(PLATFORM_TURN_SHARE * 4.0);
+        assert!((maps.with_turn(false, true, 1.5, 3.0, ten) - platform).abs() < 1e-4);
+        assert_eq!(maps.with_turn(false, true, 0.5, 3.0, ten), 3.0, "creeping");
+        assert_eq!(maps.with_turn(false, false, 1.5, 3.0, ten), 3.0, "standing");
     }
 }
