@@ -52,7 +52,8 @@ pub(crate) use noise::random_walk_variance;
 pub use params::ModeParams;
 pub use prepare::prepare;
 pub use release::{
-    RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_NOISE_CAP, RELEASE_S, RELEASE_SPEED,
+    HeldHeading, MotionRun, RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS,
+    RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP, RELEASE_NOISE_CAP_LOW_RATE, RELEASE_S, RELEASE_SPEED,
 };
 pub use scatter::{SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SPEED, SCATTER_TAU_S};
 pub use sigma::{clean, SigmaMap, SigmaMaps, CLEAN_NOISE_RATIO, SIGMA_KNOTS, TURN_SPEED};

@@ -1,6 +1,7 @@
 //! The recurrent state of one history and one epoch's step before the network's
 //! corrections.
 
+use super::release::{HeldHeading, MotionRun};
 use super::vehicle::{Platform, Vehicle};
 
 /// The recurrent state one step reads and writes. Public for the lab's training, which
@@ -55,22 +56,20 @@ pub struct StepState {
     /// [`YAW_TAU_S`]: crate::modes::YAW_TAU_S
     /// [`SigmaMaps::yaw_s`]: crate::modes::SigmaMaps::yaw_s
     pub yaw: f32,
-    /// Seconds of plain motion on a steady course up to this epoch (speed at least
-    /// [`RELEASE_SPEED`] and `3·sAcc`, course within [`RELEASE_COURSE_DEG`] of the
-    /// previous epoch's), 0 when this epoch is not: the release rule's clock.
+    /// The run of plain motion on a steady course up to this epoch (speed at least
+    /// [`RELEASE_SPEED`] and `3·sAcc`, course within [`RELEASE_COURSE_DEG`] of the run's
+    /// last epoch), none when this epoch is not plain motion: the release rule's clock.
     ///
     /// [`RELEASE_SPEED`]: crate::modes::RELEASE_SPEED
     /// [`RELEASE_COURSE_DEG`]: crate::modes::RELEASE_COURSE_DEG
-    pub t_motion: f32,
-    /// Epochs in that run of plain motion.
-    pub n_motion: u16,
-    /// Velocity (north, east; m/s) of the run's last steady epoch, for the release
-    /// rule's steadiness.
-    pub motion_v: [f32; 2],
-    /// Seconds since that epoch.
-    pub motion_dt: f32,
+    pub motion: MotionRun,
+    /// The run the epochs skipped from `motion` since its last steady epoch form (a
+    /// departure right after a glitch burst), which takes over from it.
+    pub motion_alt: MotionRun,
     /// Unsteady epochs skipped since (glitches inside a departure), at most `max_skips`.
     pub motion_skips: u8,
+    /// What a car's stand held while a short run off its axis has released it.
+    pub before_release: Option<HeldHeading>,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -95,11 +94,10 @@ impl StepState {
         held_y2: 0.0,
         held_clean: false,
         yaw: 0.0,
-        t_motion: 0.0,
-        n_motion: 0,
-        motion_v: [0.0; 2],
-        motion_dt: 0.0,
+        motion: MotionRun::NONE,
+        motion_alt: MotionRun::NONE,
         motion_skips: 0,
+        before_release: None,
         vehicle: Vehicle::UNKNOWN,
     };
 
