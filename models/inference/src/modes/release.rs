@@ -3,7 +3,7 @@
 //! any stand.
 
 use super::params::ModeParams;
-use super::state::StepState;
+use super::state::{HeldHeading, MotionRun, StepState};
 use super::vehicle::Platform;
 use crate::head::wrap_rad;
 
@@ -56,40 +56,6 @@ pub const RELEASE_EPOCHS_OFF_AXIS: u16 = 3;
 /// course than this is motion, not noise or a glitch burst's scatter.
 pub const RELEASE_COURSE_DEG: f32 = 30.0;
 
-/// A run of plain motion on a steady course (at least [`RELEASE_SPEED`] and `3·sAcc`,
-/// course within [`RELEASE_COURSE_DEG`] of the run's last epoch): the release rule's
-/// clock ([`StepState::motion`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MotionRun {
-    /// Seconds of the run up to its last epoch (0 at its first; skipped epochs' time
-    /// does not count).
-    pub t: f32,
-    /// Epochs in the run; 0 for no run.
-    pub n: u16,
-    /// Velocity (north, east; m/s) of the run's last epoch.
-    pub v: [f32; 2],
-    /// Seconds since that epoch.
-    pub since: f32,
-    /// Whether every epoch of the run lay along the axis of a sure held heading (true
-    /// when the heading was not sure).
-    pub on_axis: bool,
-}
-
-/// What a car's stand held when a short run off its axis released it
-/// ([`StepState::before_release`]): back in place if the run ends at once (a glitch
-/// burst at rest), forgotten once the run reaches [`RELEASE_EPOCHS_OFF_AXIS`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct HeldHeading {
-    /// Held heading, radians.
-    pub psi: f32,
-    /// Its `log σ`.
-    pub log_sigma: f32,
-    /// Its mode (reversing).
-    pub reverse: bool,
-    /// Whether the vehicle was a car.
-    pub car: bool,
-}
-
 /// What an epoch did to the run of plain motion ([`StepState::motion`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum RunStep {
@@ -102,15 +68,6 @@ pub(super) enum RunStep {
 }
 
 impl MotionRun {
-    /// No run.
-    pub const NONE: MotionRun = MotionRun {
-        t: 0.0,
-        n: 0,
-        v: [0.0; 2],
-        since: 0.0,
-        on_axis: true,
-    };
-
     /// A run that starts with this epoch.
     fn start(v: [f32; 2], on_axis: bool) -> MotionRun {
         MotionRun {

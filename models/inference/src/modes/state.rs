@@ -1,7 +1,6 @@
 //! The recurrent state of one history and one epoch's step before the network's
 //! corrections.
 
-use super::release::{HeldHeading, MotionRun};
 use super::vehicle::{Platform, Vehicle};
 
 /// The recurrent state one step reads and writes. Public for the lab's training, which
@@ -157,4 +156,54 @@ pub struct Step {
     pub speed: f32,
     /// The receiver reported a speed accuracy (sAcc) with this epoch.
     pub has_acc: bool,
+}
+
+/// A run of plain motion on a steady course (at least [`RELEASE_SPEED`] and `3·sAcc`,
+/// course within [`RELEASE_COURSE_DEG`] of the run's last epoch): the release rule's
+/// clock ([`StepState::motion`]).
+///
+/// [`RELEASE_SPEED`]: crate::modes::RELEASE_SPEED
+/// [`RELEASE_COURSE_DEG`]: crate::modes::RELEASE_COURSE_DEG
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionRun {
+    /// Seconds of the run up to its last epoch (0 at its first; skipped epochs' time
+    /// does not count).
+    pub t: f32,
+    /// Epochs in the run; 0 for no run.
+    pub n: u16,
+    /// Velocity (north, east; m/s) of the run's last epoch.
+    pub v: [f32; 2],
+    /// Seconds since that epoch.
+    pub since: f32,
+    /// Whether every epoch of the run lay along the axis of a sure held heading (true
+    /// when the heading was not sure).
+    pub on_axis: bool,
+}
+
+impl MotionRun {
+    /// No run.
+    pub const NONE: MotionRun = MotionRun {
+        t: 0.0,
+        n: 0,
+        v: [0.0; 2],
+        since: 0.0,
+        on_axis: true,
+    };
+}
+
+/// What a car's stand held when a short run off its axis released it
+/// ([`StepState::before_release`]): back in place if the run ends at once (a glitch
+/// burst at rest), forgotten once the run reaches [`RELEASE_EPOCHS_OFF_AXIS`].
+///
+/// [`RELEASE_EPOCHS_OFF_AXIS`]: crate::modes::RELEASE_EPOCHS_OFF_AXIS
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeldHeading {
+    /// Held heading, radians.
+    pub psi: f32,
+    /// Its `log σ`.
+    pub log_sigma: f32,
+    /// Its mode (reversing).
+    pub reverse: bool,
+    /// Whether the vehicle was a car.
+    pub car: bool,
 }
