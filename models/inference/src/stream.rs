@@ -1161,6 +1161,132 @@ mod tests {
         }
     }
 
+    /// A u-blox-like receiver at `hz` (sAcc 0.05 m/s, uniform noise of ±0.04 m/s per
+    /// axis) on a car that drove 60 s at 8 m/s on 40°, stopped and stood 30 s: the
+    /// predictor and history, holding that heading.
+    fn parked_car(hz: f64) -> (StreamPredictor, History, Ublox) {
+        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
+        let mut sp = StreamPredictor::new(model).with_platform(Some(Platform::Car));
+        let mut h = sp.history();
+        let mut rx = Ublox::new(hz, 11);
+        for _ in 0..(60.0 * hz) as usize {
+            sp.predict(&mut h, &rx.epoch([8.0, 40.0]));
+        }
+        for _ in 0..(30.0 * hz) as usize {
+            let p = sp.predict(&mut h, &rx.epoch([0.0, 0.0]));
+            assert_eq!(p.status, Status::Held, "{p:?}");
+        }
+        (sp, h, rx)
+    }
+
+    struct Ublox {
+        t: f64,
+        dt: f64,
+        rng: rand_chacha::ChaCha8Rng,
+    }
+
+    impl Ublox {
+        fn new(hz: f64, seed: u64) -> Self {
+            let rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            Self {
+                t: 0.0,
+                dt: 1.0 / hz,
+                rng,
+            }
+        }
+
+        /// The next epoch of a velocity `[speed, course_deg]` (a glitch is one too).
+        fn epoch(&mut self, [speed, course_deg]: [f32; 2]) -> Epoch {
+            self.t += self.dt;
+            let (s, c) = course_deg.to_radians().sin_cos();
+            Epoch {
+                t_s: self.t,
+                v_north: speed * c + self.rng.random_range(-0.04f32..0.04),
+                v_east: speed * s + self.rng.random_range(-0.04f32..0.04),
+                speed_acc: 0.05,
+            }
+        }
+    }
+
+    /// Seconds of `Held` answers at 1 m/s or faster (each epoch lasting `dt`) among
+    /// `velocities` fed in turn, and the answers.
+    fn held_fast(
+        sp: &mut StreamPredictor,
+        h: &mut History,
+        rx: &mut Ublox,
+        velocities: &[[f32; 2]],
+    ) -> (f64, Vec<Prediction>) {
+        let answers: Vec<_> = velocities
+            .iter()
+            .map(|&v| sp.predict(h, &rx.epoch(v)))
+            .collect();
+        let held = answers
+            .iter()
+            .filter(|p| p.status == Status::Held && p.speed >= 1.0);
+        (held.count() as f64 * rx.dt, answers)
+    }
+
+    /// A parked car leaving at 1 Hz is answered from its second epoch of driving on:
+    /// one held second at most, whether it leaves along its held heading or 60° off it
+    /// (a held heading can be wrong), and the answer then follows the course.
+    #[test]
+    fn a_1hz_departure_is_released_on_its_second_epoch() {
+        for course in [40.0, 100.0] {
+            let (mut sp, mut h, mut rx) = parked_car(1.0);
+            let drive: Vec<_> = (1..=8).map(|k| [1.2 * k as f32, course]).collect();
+            let (held, answers) = held_fast(&mut sp, &mut h, &mut rx, &drive);
+            assert!(held <= 1.0, "course {course}°: held {held} s, {answers:?}");
+            let last = answers.last().expect("answers");
+            let err = (last.heading_deg - course + 540.0).rem_euclid(360.0) - 180.0;
+            assert!(err.abs() < 5.0, "course {course}°: {last:?}");
+        }
+    }
+
+    /// A glitch burst at rest (three equal epochs at 3 m/s) right before the real
+    /// departure (60° off the held heading, so only the release rule lets it go) does
+    /// not delay it: the departure's run takes over from the burst's, and the car is
+    /// answered within about a second of leaving.
+    #[test]
+    fn a_departure_right_after_a_glitch_burst_is_not_delayed() {
+        let (mut sp, mut h, mut rx) = parked_car(5.0);
+        let mut v = vec![[3.0, 200.0]; 3];
+        v.extend((1..=15).map(|k| [1.0 + 0.3 * k as f32, 100.0]));
+        let (_, answers) = held_fast(&mut sp, &mut h, &mut rx, &v);
+        let held = answers[3..]
+            .iter()
+            .take_while(|p| p.status == Status::Held)
+            .count();
+        assert!(
+            held <= 5,
+            "held {held} epochs of the departure: {answers:?}"
+        );
+    }
+
+    /// At 1 Hz a single spike at rest (3 m/s, along the car or across it) does not
+    /// release a parked car, and a burst of two equal glitches across it gives the
+    /// stand its heading back as soon as it ends.
+    #[test]
+    fn glitches_at_rest_do_not_turn_a_parked_car() {
+        let bursts: [&[[f32; 2]]; 3] = [&[[3.0, 40.0]], &[[3.0, 130.0]], &[[3.0, 130.0]; 2]];
+        for burst in bursts {
+            let (mut sp, mut h, mut rx) = parked_car(1.0);
+            let held = sp.predict(&mut h, &rx.epoch([0.0, 0.0])).heading_deg;
+            let mut v = burst.to_vec();
+            v.extend([[0.0, 0.0]; 5]);
+            let (_, answers) = held_fast(&mut sp, &mut h, &mut rx, &v);
+            if burst.len() == 1 {
+                assert!(
+                    answers.iter().all(|p| p.status == Status::Held),
+                    "{answers:?}"
+                );
+            }
+            for p in &answers[burst.len()..] {
+                assert_eq!(p.status, Status::Held, "{burst:?}: {answers:?}");
+                assert!((p.heading_deg - held).abs() < 1.0, "{burst:?}: {answers:?}");
+            }
+        }
+    }
+
     /// `car` makes a vehicle a car from its first epoch and keeps it one through a
     /// sideways departure; `robot` never takes it for one, however fast it drives.
     #[test]

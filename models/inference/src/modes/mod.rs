@@ -54,7 +54,8 @@ pub(crate) use noise::random_walk_variance;
 pub use params::ModeParams;
 pub use prepare::prepare;
 pub use release::{
-    RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_NOISE_CAP, RELEASE_S, RELEASE_SPEED,
+    RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT,
+    RELEASE_NOISE_CAP, RELEASE_NOISE_CAP_LOW_RATE, RELEASE_S, RELEASE_SPEED,
 };
 pub use scatter::{
     extrapolation_share, SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED,
@@ -64,7 +65,7 @@ pub use sigma::{
     clean, SigmaMap, SigmaMaps, CLEAN_NOISE_RATIO, PLATFORM_TURN_SHARE, PLATFORM_TURN_SPEED,
     SIGMA_KNOTS, TURN_SPEED,
 };
-pub use state::{Step, StepState};
+pub use state::{HeldHeading, MotionRun, Step, StepState};
 pub use vehicle::{Platform, Vehicle, FAST_EPOCHS};
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 
 use super::noise::{cap2, driving_variance, measured, measurement, still_variance, update_noise};
 use super::params::ModeParams;
-use super::release::{glitch, track_motion};
+use super::release::{glitch, keep_or_restore_held, track_motion};
 use super::scatter::update_scatter;
 use super::state::{Step, StepState};
 use super::vehicle::{Platform, FAST_EPOCHS};
@@ -24,7 +24,8 @@ pub fn prepare(
     let speed = vn.hypot(ve);
     let course = ve.atan2(vn);
     update_noise(mp, &mut st.vehicle, speed, acc);
-    track_motion(mp, st, vn, ve, acc, dt);
+    let run = track_motion(mp, st, vn, ve, acc, dt);
+    keep_or_restore_held(st, run);
     let cap2 = cap2();
     let mut step = Step {
         course,

@@ -3,17 +3,17 @@
 //! any stand.
 
 use super::params::ModeParams;
-use super::state::StepState;
+use super::state::{HeldHeading, MotionRun, StepState};
 use super::vehicle::Platform;
 use crate::head::wrap_rad;
 
 /// Speed (m/s) from which an epoch is plain motion for the release rule
-/// ([`StepState::t_motion`]), whatever the noise estimate says: a receiver at rest does
+/// ([`StepState::motion`]), whatever the noise estimate says: a receiver at rest does
 /// not read this fast for a second with a steady course, unless its sAcc says it may
 /// (then `3·sAcc` is the bar).
 pub const RELEASE_SPEED: f32 = 0.8;
 
-/// Seconds of plain motion on a steady course that end any stand ([`StepState::t_motion`]):
+/// Seconds of plain motion on a steady course that end any stand ([`StepState::motion`]):
 /// once a vehicle has shown this much consistent motion, its answer follows the course,
 /// whatever the stand's rules (a car's axis, a glitch burst's confirmation, a noise
 /// estimate inflated by slow driving) would still say. Longer than the glitch bursts of
@@ -26,21 +26,124 @@ pub const RELEASE_S: f32 = 0.8;
 /// as noise than a receiver that noisy at rest.
 pub const RELEASE_NOISE_CAP: f32 = 0.3;
 
-/// Fewest epochs of plain motion that end a stand (with [`RELEASE_S`]): at 1 and 2 Hz
-/// a burst of two equal glitches under poor sky spans a second, and releasing a parked
-/// car on it turned its held heading.
-pub const RELEASE_EPOCHS: u16 = 3;
+/// [`RELEASE_NOISE_CAP`] at low rates (epochs [`RELEASE_LOW_RATE_DT`] apart or more):
+/// four times it is 1 m/s, the speed from which a held answer counts as a stop
+/// outliving the motion, so no noise estimate keeps a steady 1 m/s from releasing on
+/// its second epoch. At such rates a receiver's noise at rest is independent from one
+/// epoch to the next, and two epochs agreeing on the course are rare without motion;
+/// at 5 Hz and faster it is correlated over several epochs, and the lower bar released
+/// standing cars (the stopped rows of `reports/unmet.md`).
+pub const RELEASE_NOISE_CAP_LOW_RATE: f32 = 0.25;
+
+/// Shortest epoch interval (s) at which [`RELEASE_NOISE_CAP_LOW_RATE`] applies.
+pub const RELEASE_LOW_RATE_DT: f32 = 0.5;
+
+/// Fewest epochs of plain motion that end a stand (with [`RELEASE_S`]): two that agree
+/// (course within [`RELEASE_COURSE_DEG`], velocity within `a_max·dt`), so that at 1 Hz
+/// the second second of driving is answered and a single spike never releases.
+pub const RELEASE_EPOCHS: u16 = 2;
+
+/// Epochs of plain motion off the axis of a car's sure held heading that make its
+/// release final: at 1 and 2 Hz a burst of two equal glitches under poor sky spans a
+/// second, and releasing a parked car on it for good turned its held heading. A car
+/// leaves a stand along its body and most glitches point elsewhere, so a shorter run
+/// off the axis releases the car but keeps what the stand held, and gives it back if
+/// the run ends ([`StepState::before_release`]): the held heading is not lost, and a
+/// departure whose held heading was wrong is not held a second longer.
+pub const RELEASE_EPOCHS_OFF_AXIS: u16 = 3;
 
 /// Largest course change (°) between successive epochs of plain motion: a steadier
 /// course than this is motion, not noise or a glitch burst's scatter.
 pub const RELEASE_COURSE_DEG: f32 = 30.0;
 
+/// What an epoch did to the run of plain motion ([`StepState::motion`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum RunStep {
+    /// It continued the run.
+    Extended,
+    /// It was skipped (a glitch inside the run, or the start of another).
+    Skipped,
+    /// It ended the run: no run, or another one.
+    New,
+}
+
+impl MotionRun {
+    /// A run that starts with this epoch.
+    fn start(v: [f32; 2], on_axis: bool) -> MotionRun {
+        MotionRun {
+            n: 1,
+            v,
+            on_axis,
+            ..Self::NONE
+        }
+    }
+
+    /// Whether velocity `v` continues the run: the course within
+    /// [`RELEASE_COURSE_DEG`] and the velocity within what a vehicle can change since
+    /// the run's last epoch (glitch bursts come back to back with other sizes).
+    fn steady(&self, mp: &ModeParams, v: [f32; 2]) -> bool {
+        let [pn, pe] = self.v;
+        let turn = wrap_rad(v[1].atan2(v[0]) - pe.atan2(pn)).abs();
+        self.n > 0
+            && self.since <= 2.0
+            && turn <= RELEASE_COURSE_DEG.to_radians()
+            && (v[0] - pn).hypot(v[1] - pe) <= mp.a_max * self.since + 0.3
+    }
+
+    /// The run continued by an epoch `dt` after the one before it.
+    fn extend(self, v: [f32; 2], dt: f32, on_axis: bool) -> MotionRun {
+        MotionRun {
+            t: self.t + dt,
+            n: self.n.saturating_add(1),
+            v,
+            since: 0.0,
+            on_axis: self.on_axis && on_axis,
+        }
+    }
+}
+
 impl StepState {
-    /// Whether the release rule ends a stand on this epoch: a second of plain motion
-    /// on a steady course ([`RELEASE_S`], and at least two epochs).
+    /// Whether the release rule ends a stand on this epoch: about a second of plain
+    /// motion on a steady course ([`RELEASE_S`], and at least [`RELEASE_EPOCHS`]). A
+    /// car released off its held heading's axis by fewer than
+    /// [`RELEASE_EPOCHS_OFF_AXIS`] keeps what it held ([`StepState::before_release`]).
     #[inline]
     pub fn released(&self) -> bool {
-        self.t_motion >= RELEASE_S && self.n_motion >= RELEASE_EPOCHS
+        self.motion.t >= RELEASE_S && self.motion.n >= RELEASE_EPOCHS
+    }
+}
+
+/// A car's stand released by a run shorter than [`RELEASE_EPOCHS_OFF_AXIS`] off the
+/// axis of its held heading keeps what it held ([`StepState::before_release`]): if that
+/// run ends or gives way to another before it is long enough, it was a glitch burst
+/// and the stand gets its heading back; once it is long enough, it was a departure.
+pub(super) fn keep_or_restore_held(st: &mut StepState, step: RunStep) {
+    if let Some(h) = st.before_release {
+        let n = st.motion.n;
+        if step == RunStep::Extended && n >= RELEASE_EPOCHS_OFF_AXIS {
+            st.before_release = None;
+        } else if step == RunStep::New {
+            st.psi = h.psi;
+            st.log_sigma = h.log_sigma;
+            st.reverse = h.reverse;
+            st.vehicle.car = h.car;
+            st.before_release = None;
+        }
+    }
+    if st.before_release.is_none()
+        && st.vehicle.car
+        && st.t_still > 0.0
+        && st.has_prior
+        && st.released()
+        && !st.motion.on_axis
+        && st.motion.n < RELEASE_EPOCHS_OFF_AXIS
+    {
+        st.before_release = Some(HeldHeading {
+            psi: st.psi,
+            log_sigma: st.log_sigma,
+            reverse: st.reverse,
+            car: st.vehicle.car,
+        });
     }
 }
 
@@ -124,8 +227,14 @@ fn off_axis_of_held(mp: &ModeParams, st: &StepState, vn: f32, ve: f32, p: f32, r
     sure && off_axis > mp.axis_deg.to_radians() + 2.0 * r
 }
 
-/// The release rule's clock ([`StepState::t_motion`]): runs while epochs are plain
+/// The release rule's clock ([`StepState::motion`]): runs while epochs are plain
 /// motion (at least [`RELEASE_SPEED`] and `3·sAcc`) on a steady course.
+///
+/// An unsteady epoch inside a run (a glitch inside a departure) neither counts nor ends
+/// it, up to `max_skips` in a row; the skipped epochs form a run of their own
+/// ([`StepState::motion_alt`]), which takes over once it is the longer or the skips
+/// run out: a glitch burst that started the run does not delay the real departure
+/// right after it.
 #[inline]
 pub(super) fn track_motion(
     mp: &ModeParams,
@@ -134,39 +243,49 @@ pub(super) fn track_motion(
     ve: f32,
     acc: f32,
     dt: f32,
-) {
+) -> RunStep {
     let speed = vn.hypot(ve);
     // The receiver's noise at rest as measured, capped: slow driving inflates the
     // estimate (it reads slow speeds as noise), and that must not hide real motion.
-    let noise = (st.vehicle.noise / mp.quantile_factor()).min(RELEASE_NOISE_CAP);
+    let cap = if dt >= RELEASE_LOW_RATE_DT {
+        RELEASE_NOISE_CAP_LOW_RATE
+    } else {
+        RELEASE_NOISE_CAP
+    };
+    let noise = (st.vehicle.noise / mp.quantile_factor()).min(cap);
     let acc = if acc.is_finite() { acc } else { 0.0 };
     let bar = RELEASE_SPEED.max(3.0 * acc).max(4.0 * noise);
     let plain = speed >= bar;
-    st.motion_dt += dt;
-    // Steady: the course within RELEASE_COURSE_DEG and the velocity within what a
-    // vehicle can change since the run's last epoch (glitch bursts come back to back
-    // with other sizes).
-    let [pn, pe] = st.motion_v;
-    let since = st.motion_dt;
-    let steady = st.n_motion > 0
-        && since <= 2.0
-        && wrap_rad(ve.atan2(vn) - pe.atan2(pn)).abs() <= RELEASE_COURSE_DEG.to_radians()
-        && (vn - pn).hypot(ve - pe) <= mp.a_max * since + 0.3;
-    if plain && steady {
+    let v = [vn, ve];
+    st.motion.since += dt;
+    st.motion_alt.since += dt;
+    if !plain {
+        (st.motion, st.motion_alt, st.motion_skips) = (MotionRun::NONE, MotionRun::NONE, 0);
+        return RunStep::New;
+    }
+    let course_sigma = noise.max(acc).max(mp.sigma_floor) / speed;
+    let p = (2.0 * st.log_sigma).exp();
+    let on_axis = !(st.has_prior && off_axis_of_held(mp, st, vn, ve, p, course_sigma));
+    if st.motion.steady(mp, v) {
         // Skipped epochs' time does not count: two glitch bursts alike, apart, are not
         // a departure.
-        st.t_motion += dt;
-        st.n_motion = st.n_motion.saturating_add(1);
-    } else if plain && st.n_motion > 0 && st.motion_skips < mp.max_skips {
-        // A glitch inside a departure neither counts nor ends the run (the run's time
-        // goes on, measured from its last steady epoch).
-        st.motion_skips += 1;
-        return;
-    } else {
-        st.t_motion = 0.0;
-        st.n_motion = u16::from(plain);
+        st.motion = st.motion.extend(v, dt, on_axis);
+        (st.motion_alt, st.motion_skips) = (MotionRun::NONE, 0);
+        return RunStep::Extended;
     }
-    st.motion_skips = 0;
-    st.motion_dt = 0.0;
-    st.motion_v = [vn, ve];
+    let alt = if st.motion_alt.steady(mp, v) {
+        st.motion_alt.extend(v, dt, on_axis)
+    } else {
+        MotionRun::start(v, on_axis)
+    };
+    if st.motion.n > 0 && st.motion_skips < mp.max_skips && alt.n <= st.motion.n {
+        // A glitch inside a departure: the run's time goes on, measured from its last
+        // steady epoch.
+        st.motion_skips += 1;
+        st.motion_alt = alt;
+        RunStep::Skipped
+    } else {
+        (st.motion, st.motion_alt, st.motion_skips) = (alt, MotionRun::NONE, 0);
+        RunStep::New
+    }
 }

@@ -55,22 +55,20 @@ pub struct StepState {
     /// [`YAW_TAU_S`]: crate::modes::YAW_TAU_S
     /// [`SigmaMaps::yaw_s`]: crate::modes::SigmaMaps::yaw_s
     pub yaw: f32,
-    /// Seconds of plain motion on a steady course up to this epoch (speed at least
-    /// [`RELEASE_SPEED`] and `3·sAcc`, course within [`RELEASE_COURSE_DEG`] of the
-    /// previous epoch's), 0 when this epoch is not: the release rule's clock.
+    /// The run of plain motion on a steady course up to this epoch (speed at least
+    /// [`RELEASE_SPEED`] and `3·sAcc`, course within [`RELEASE_COURSE_DEG`] of the run's
+    /// last epoch), none when this epoch is not plain motion: the release rule's clock.
     ///
     /// [`RELEASE_SPEED`]: crate::modes::RELEASE_SPEED
     /// [`RELEASE_COURSE_DEG`]: crate::modes::RELEASE_COURSE_DEG
-    pub t_motion: f32,
-    /// Epochs in that run of plain motion.
-    pub n_motion: u16,
-    /// Velocity (north, east; m/s) of the run's last steady epoch, for the release
-    /// rule's steadiness.
-    pub motion_v: [f32; 2],
-    /// Seconds since that epoch.
-    pub motion_dt: f32,
+    pub motion: MotionRun,
+    /// The run the epochs skipped from `motion` since its last steady epoch form (a
+    /// departure right after a glitch burst), which takes over from it.
+    pub motion_alt: MotionRun,
     /// Unsteady epochs skipped since (glitches inside a departure), at most `max_skips`.
     pub motion_skips: u8,
+    /// What a car's stand held while a short run off its axis has released it.
+    pub before_release: Option<HeldHeading>,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -95,11 +93,10 @@ impl StepState {
         held_y2: 0.0,
         held_clean: false,
         yaw: 0.0,
-        t_motion: 0.0,
-        n_motion: 0,
-        motion_v: [0.0; 2],
-        motion_dt: 0.0,
+        motion: MotionRun::NONE,
+        motion_alt: MotionRun::NONE,
         motion_skips: 0,
+        before_release: None,
         vehicle: Vehicle::UNKNOWN,
     };
 
@@ -159,4 +156,54 @@ pub struct Step {
     pub speed: f32,
     /// The receiver reported a speed accuracy (sAcc) with this epoch.
     pub has_acc: bool,
+}
+
+/// A run of plain motion on a steady course (at least [`RELEASE_SPEED`] and `3·sAcc`,
+/// course within [`RELEASE_COURSE_DEG`] of the run's last epoch): the release rule's
+/// clock ([`StepState::motion`]).
+///
+/// [`RELEASE_SPEED`]: crate::modes::RELEASE_SPEED
+/// [`RELEASE_COURSE_DEG`]: crate::modes::RELEASE_COURSE_DEG
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionRun {
+    /// Seconds of the run up to its last epoch (0 at its first; skipped epochs' time
+    /// does not count).
+    pub t: f32,
+    /// Epochs in the run; 0 for no run.
+    pub n: u16,
+    /// Velocity (north, east; m/s) of the run's last epoch.
+    pub v: [f32; 2],
+    /// Seconds since that epoch.
+    pub since: f32,
+    /// Whether every epoch of the run lay along the axis of a sure held heading (true
+    /// when the heading was not sure).
+    pub on_axis: bool,
+}
+
+impl MotionRun {
+    /// No run.
+    pub const NONE: MotionRun = MotionRun {
+        t: 0.0,
+        n: 0,
+        v: [0.0; 2],
+        since: 0.0,
+        on_axis: true,
+    };
+}
+
+/// What a car's stand held when a short run off its axis released it
+/// ([`StepState::before_release`]): back in place if the run ends at once (a glitch
+/// burst at rest), forgotten once the run reaches [`RELEASE_EPOCHS_OFF_AXIS`].
+///
+/// [`RELEASE_EPOCHS_OFF_AXIS`]: crate::modes::RELEASE_EPOCHS_OFF_AXIS
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeldHeading {
+    /// Held heading, radians.
+    pub psi: f32,
+    /// Its `log σ`.
+    pub log_sigma: f32,
+    /// Its mode (reversing).
+    pub reverse: bool,
+    /// Whether the vehicle was a car.
+    pub car: bool,
 }
