@@ -1063,12 +1063,11 @@ mod tests {
 
     impl Snapping {
         fn new(lag_s: f32, seed: u64) -> Self {
-            let rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
             Self {
                 t: 0.0,
                 lagged: [0.0; 2],
                 lag_s,
-                rng,
+                rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed),
             }
         }
 
@@ -1187,11 +1186,10 @@ mod tests {
 
     impl Ublox {
         fn new(hz: f64, seed: u64) -> Self {
-            let rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
             Self {
                 t: 0.0,
                 dt: 1.0 / hz,
-                rng,
+                rng: rand_chacha::ChaCha8Rng::seed_from_u64(seed),
             }
         }
 
