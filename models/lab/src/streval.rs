@@ -161,7 +161,7 @@ pub struct Row {
     pub cells: Vec<Cell>,
     /// The longest run of `Held` answers of the last estimator among the row's epochs
     /// at a measured speed of [`HELD_MOVING_SPEED`] or faster, seconds (each epoch
-    /// counts until the next, at most 1 s): a stop that outlives the motion, the
+    /// counts until the next, at most its track's usual interval): a stop that outlives the motion, the
     /// failure a filter fusing held headings cannot see. `None` for an estimator
     /// without status.
     pub held_moving_s: Option<f64>,
@@ -220,8 +220,10 @@ pub struct Memory {
 pub const HELD_MOVING_SPEED: f32 = 1.0;
 
 /// The longest run (s) of `held` epochs at [`HELD_MOVING_SPEED`] or faster in `t`, each
-/// epoch lasting until the next (the last as long as the one before it).
+/// epoch lasting until the next (the last as long as the one before it), at most the
+/// track's usual interval: a fix gap after a held epoch is not time held.
 fn longest_held_moving(t: &LogTrack, held: impl Fn(usize) -> bool) -> f64 {
+    let usual = usual_interval(&t.t_s);
     let (mut run, mut longest) = (0.0f64, 0.0f64);
     for i in 0..t.len() {
         let fast = t.v_north[i].hypot(t.v_east[i]) >= HELD_MOVING_SPEED;
@@ -231,14 +233,25 @@ fn longest_held_moving(t: &LogTrack, held: impl Fn(usize) -> bool) -> f64 {
                 (None, Some(prev)) => t.t_s[i] - t.t_s[prev],
                 (None, None) => 0.0,
             };
-            // A fix gap after a held epoch is not time held.
-            run + dt.min(1.0)
+            run + dt.min(usual)
         } else {
             0.0
         };
         longest = longest.max(run);
     }
     longest
+}
+
+/// The median interval (s) between successive epochs of a track, at most 1 s (1 s
+/// for a track of one epoch): its receiver's rate, whatever its fix gaps.
+fn usual_interval(t_s: &[f64]) -> f64 {
+    let mut dts: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
+    if dts.is_empty() {
+        return 1.0;
+    }
+    let mid = dts.len() / 2;
+    let (_, median, _) = dts.select_nth_unstable_by(mid, f64::total_cmp);
+    median.clamp(0.0, 1.0)
 }
 
 /// Fewest epochs a drive needs to count in [`Memory::drives_within_1sigma`].
