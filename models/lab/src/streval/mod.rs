@@ -17,6 +17,10 @@ use crate::eval::wrap_deg;
 use crate::logs::LogTrack;
 use crate::table::{fmt_opt, Markdown, Tally};
 
+mod held;
+use held::held_moving;
+pub use held::HELD_MOVING_SPEED;
+
 /// Name of the atan2 baseline in tables.
 pub const ATAN2: &str = "atan2";
 /// Name of the receiver's frozen course in tables.
@@ -216,44 +220,6 @@ pub struct Memory {
     pub drives: usize,
 }
 
-/// Measured speed (m/s) from which a `Held` answer counts in [`Row::held_moving_s`].
-pub const HELD_MOVING_SPEED: f32 = 1.0;
-
-/// The longest run (s) of `held` epochs at [`HELD_MOVING_SPEED`] or faster in `t`, each
-/// epoch lasting until the next (the last as long as the one before it), at most the
-/// track's usual interval: a fix gap after a held epoch is not time held.
-fn longest_held_moving(t: &LogTrack, held: impl Fn(usize) -> bool) -> f64 {
-    let usual = usual_interval(&t.t_s);
-    let (mut run, mut longest) = (0.0f64, 0.0f64);
-    for i in 0..t.len() {
-        let fast = t.v_north[i].hypot(t.v_east[i]) >= HELD_MOVING_SPEED;
-        run = if held(i) && fast {
-            let dt = match (t.t_s.get(i + 1), i.checked_sub(1)) {
-                (Some(next), _) => next - t.t_s[i],
-                (None, Some(prev)) => t.t_s[i] - t.t_s[prev],
-                (None, None) => 0.0,
-            };
-            run + dt.min(usual)
-        } else {
-            0.0
-        };
-        longest = longest.max(run);
-    }
-    longest
-}
-
-/// The median interval (s) between successive epochs of a track, at most 1 s (1 s
-/// for a track of one epoch): its receiver's rate, whatever its fix gaps.
-fn usual_interval(t_s: &[f64]) -> f64 {
-    let mut dts: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
-    if dts.is_empty() {
-        return 1.0;
-    }
-    let mid = dts.len() / 2;
-    let (_, median, _) = dts.select_nth_unstable_by(mid, f64::total_cmp);
-    median.clamp(0.0, 1.0)
-}
-
 /// Fewest epochs a drive needs to count in [`Memory::drives_within_1sigma`].
 pub const MIN_DRIVE_EPOCHS: usize = 100;
 /// Fewest drives for the per-drive percentiles.
@@ -309,28 +275,10 @@ fn row(
         label,
         count: idx.len(),
         cells: answers.iter().map(|a| cell(a, truth, idx)).collect(),
-        held_moving_s: answers.last().and_then(|a| held_moving(tracks, a, idx)),
+        held_moving_s: answers
+            .last()
+            .and_then(|a| held_moving(tracks, &a.status, idx)),
     }
-}
-
-/// The longest run (s) of `a`'s `Held` answers among the epochs `idx` of `tracks`
-/// (concatenated) at [`HELD_MOVING_SPEED`] or faster; `None` without status.
-fn held_moving(tracks: &[LogTrack], a: &Answers, idx: &[usize]) -> Option<f64> {
-    let n: usize = tracks.iter().map(LogTrack::len).sum();
-    if a.status.len() != n {
-        return None;
-    }
-    let mut held = vec![false; n];
-    for &i in idx {
-        held[i] = a.status[i] == Status::Held;
-    }
-    let (mut start, mut longest) = (0, 0.0f64);
-    for t in tracks {
-        let s0 = start;
-        longest = longest.max(longest_held_moving(t, |i| held[s0 + i]));
-        start += t.len();
-    }
-    Some(longest)
 }
 
 /// Per epoch of `tracks` (concatenated): whether its history has seen motion, i.e.
