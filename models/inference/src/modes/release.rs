@@ -126,7 +126,8 @@ pub(super) fn keep_or_restore_held(st: &mut StepState, step: RunStep) {
             st.psi = h.psi;
             st.log_sigma = h.log_sigma;
             st.reverse = h.reverse;
-            st.vehicle.car = h.car;
+            // Only a car's stand is kept; an off-axis release may have unmade it one.
+            st.vehicle.car = true;
             st.before_release = None;
         }
     }
@@ -142,7 +143,6 @@ pub(super) fn keep_or_restore_held(st: &mut StepState, step: RunStep) {
             psi: st.psi,
             log_sigma: st.log_sigma,
             reverse: st.reverse,
-            car: st.vehicle.car,
         });
     }
 }

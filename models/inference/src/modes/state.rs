@@ -204,6 +204,4 @@ pub struct HeldHeading {
     pub log_sigma: f32,
     /// Its mode (reversing).
     pub reverse: bool,
-    /// Whether the vehicle was a car.
-    pub car: bool,
 }
