@@ -151,7 +151,8 @@ pub fn advance(
 /// epoch's (trained on noise it cannot see through, it would only make σ jitter).
 /// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
 /// A car moving at speed then gains the turn term, a platform moving its share of it
-/// ([`crate::modes::SigmaMaps::with_turn`]).
+/// ([`crate::modes::SigmaMaps::with_turn`]), and one whose receiver reports no speed
+/// accuracy its lag term ([`crate::modes::SigmaMaps::with_lag`]).
 /// A car or platform moving at [`crate::modes::TURN_SPEED`] or faster has a σ of at
 /// least the course scatter the source has shown at speed over the speed
 /// ([`crate::modes::SigmaMaps::scatter_k`]) when that scatter exceeds
@@ -191,6 +192,7 @@ pub fn reported_sigma(
     let car = st.vehicle.car;
     let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
     let sigma = maps.with_turn(car, moved, step.speed, mapped, st.yaw);
+    let sigma = maps.with_lag(step.has_acc, car, moved, step.speed, sigma, st.yaw);
     let scatter = st.vehicle.scatter;
     // Only a receiver noisier than the filter takes it to be: where the scatter is
     // within the σ_v in use, the maps (fitted on such receivers) already know it.

@@ -62,8 +62,8 @@ pub use scatter::{
     SCATTER_TAU_S,
 };
 pub use sigma::{
-    clean, SigmaMap, SigmaMaps, CLEAN_NOISE_RATIO, PLATFORM_TURN_SHARE, PLATFORM_TURN_SPEED,
-    SIGMA_KNOTS, TURN_SPEED,
+    clean, SigmaMap, SigmaMaps, CLEAN_NOISE_RATIO, LAG_NONE_S, LAG_YAW_DEADBAND_DEG,
+    PLATFORM_TURN_SHARE, PLATFORM_TURN_SPEED, SIGMA_KNOTS, TURN_SPEED,
 };
 pub use state::{HeldHeading, MotionRun, Step, StepState};
 pub use vehicle::{Platform, Vehicle, FAST_EPOCHS};
