@@ -49,7 +49,9 @@ mod sigma;
 mod state;
 mod vehicle;
 
-pub use commit::{commit, corrected_gain, reverse_logit, Decision, REVERSE_PRIOR, YAW_TAU_S};
+pub use commit::{
+    commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR, YAW_TAU_S,
+};
 pub(crate) use noise::random_walk_variance;
 pub use params::ModeParams;
 pub use prepare::prepare;
@@ -66,7 +68,7 @@ pub use sigma::{
     SIGMA_KNOTS, TURN_SPEED,
 };
 pub use state::{HeldHeading, MotionRun, Step, StepState};
-pub use vehicle::{Platform, Vehicle, FAST_EPOCHS};
+pub use vehicle::{Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED};
 
 #[cfg(test)]
 mod tests {
@@ -160,6 +162,86 @@ mod tests {
                     "a robot drives on: {off}° {st:?}"
                 );
             }
+        }
+    }
+
+    /// One 5 Hz epoch of a receiver without sAcc along `course_deg` at `speed` (exact
+    /// zeros at 0), filter alone: the answer and the course (radians).
+    fn no_acc(st: &mut StepState, speed: f32, course_deg: f32) -> (Decision, f32) {
+        let mp = ModeParams::default();
+        let c = course_deg.to_radians();
+        let step = prepare(
+            &mp,
+            0.5,
+            st,
+            speed * c.cos(),
+            speed * c.sin(),
+            f32::NAN,
+            0.2,
+        );
+        (commit(st, &step, &[0.0, 0.0, 0.0], 0.2), c)
+    }
+
+    /// A robot stands (at `rest` m/s), drives straight, then turns at 10°/s: how far
+    /// (degrees) the last answer is ahead of the last course.
+    fn lead_in_turn(platform: Platform, rest: f32) -> f32 {
+        let mut st = StepState::fresh(platform);
+        for _ in 0..10 {
+            no_acc(&mut st, rest, 0.0);
+        }
+        for _ in 0..10 {
+            no_acc(&mut st, 1.5, 0.0);
+        }
+        let mut last = (0.0, 0.0);
+        for k in 1..=25 {
+            let (d, c) = no_acc(&mut st, 1.5, 2.0 * k as f32);
+            last = (d.psi, c);
+        }
+        wrap_rad(last.0 - last.1).to_degrees()
+    }
+
+    /// A receiver that holds static (exact zeros at rest, no creeping speeds) runs a
+    /// navigation filter whose course lags a turn: a robot's answer leads its course by
+    /// the filtered yaw rate times `hold_lag_s` (10°/s × 0.5 s ≈ 5°). A receiver that
+    /// shows its noise at rest, and a car, are answered along the course.
+    #[test]
+    fn a_static_hold_receivers_course_is_led_through_a_turn() {
+        let lead = lead_in_turn(Platform::Robot, 0.0);
+        assert!((3.0..6.0).contains(&lead), "static hold: {lead}°");
+        let lead = lead_in_turn(Platform::Robot, 0.1);
+        assert!(lead.abs() < 1.0, "creeping at rest: {lead}°");
+        let lead = lead_in_turn(Platform::Car, 0.0);
+        assert!(lead.abs() < 1.0, "a car: {lead}°");
+        let mut v = Vehicle::UNKNOWN;
+        v.observe_hold(0.0, 0.0);
+        assert!(v.holds_static());
+        v.observe_hold(1.5, 0.0);
+        assert!(v.holds_static(), "motion starts with a jump");
+        v.observe_hold(0.05, 0.1);
+        assert!(!v.holds_static(), "a creeping speed");
+    }
+
+    /// Leaving a stand, the step from the held heading to the first course (a spin in
+    /// place) is no turn the course lags: the answers after it follow the new course.
+    #[test]
+    fn leaving_a_stand_is_not_led() {
+        let mut st = StepState::fresh(Platform::Robot);
+        for _ in 0..10 {
+            no_acc(&mut st, 0.0, 0.0);
+        }
+        for _ in 0..10 {
+            no_acc(&mut st, 1.5, 0.0);
+        }
+        for _ in 0..10 {
+            no_acc(&mut st, 0.0, 0.0);
+        }
+        for _ in 0..3 {
+            let (d, c) = no_acc(&mut st, 1.5, 120.0);
+            let off = wrap_rad(d.psi - c).to_degrees();
+            assert!(
+                off.abs() < 1.0,
+                "{off}° off the course after a spin: {st:?}"
+            );
         }
     }
 }

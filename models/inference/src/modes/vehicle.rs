@@ -3,6 +3,10 @@
 
 use serde::{Deserialize, Serialize};
 
+/// A receiver that holds static never reports a speed above zero and below this
+/// (m/s): its first moving epoch after a stand jumps past it.
+pub const HOLD_CREEP_SPEED: f32 = 0.25;
+
 /// Fewest epochs above `fast_speed` that make a vehicle a car.
 pub const FAST_EPOCHS: u16 = 5;
 
@@ -72,6 +76,10 @@ pub struct Vehicle {
     pub scatter: f32,
     /// What the source's user says carries the receiver; kept through every reset.
     pub platform: Platform,
+    /// The receiver has reported a velocity of exactly zero.
+    pub zero_seen: bool,
+    /// The receiver has reported a speed above zero and below [`HOLD_CREEP_SPEED`].
+    pub creep_seen: bool,
 }
 
 impl Vehicle {
@@ -81,5 +89,25 @@ impl Vehicle {
         noise: f32::NAN,
         scatter: f32::NAN,
         platform: Platform::Auto,
+        zero_seen: false,
+        creep_seen: false,
     };
+
+    /// Record what one epoch's velocity says about a static hold.
+    #[inline]
+    pub fn observe_hold(&mut self, vn: f32, ve: f32) {
+        if vn == 0.0 && ve == 0.0 {
+            self.zero_seen = true;
+        } else if vn.hypot(ve) < HOLD_CREEP_SPEED {
+            self.creep_seen = true;
+        }
+    }
+
+    /// Whether the receiver holds static: it reports exactly zero at rest and never a
+    /// creeping speed, so motion starts with a jump. Raw Doppler velocities (RTKLIB,
+    /// most u-blox settings) and quantized NMEA speeds show their noise at rest.
+    #[inline]
+    pub fn holds_static(&self) -> bool {
+        self.zero_seen && !self.creep_seen
+    }
 }
