@@ -23,8 +23,7 @@ pub fn prepare(
 ) -> Step {
     let speed = vn.hypot(ve);
     let course = ve.atan2(vn);
-    st.vehicle.observe_hold(vn, ve);
-    update_noise(mp, &mut st.vehicle, speed, acc);
+    update_noise(mp, &mut st.vehicle, vn, ve, acc);
     let run = track_motion(mp, st, vn, ve, acc, dt);
     keep_or_restore_held(st, run);
     let cap2 = cap2();
