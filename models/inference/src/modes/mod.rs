@@ -244,4 +244,23 @@ mod tests {
             );
         }
     }
+
+    /// A course that zig-zags ±15° about a straight line (a noisy receiver) reads as
+    /// rates of ±150°/s; smoothed, they leave a few °/s of swing that a lead would turn
+    /// into degrees of error. Shrunk by their scatter, the lead stays under half a degree.
+    #[test]
+    fn a_noisy_course_is_not_led() {
+        let mut st = StepState::fresh(Platform::Robot);
+        for _ in 0..10 {
+            no_acc(&mut st, 0.0, 0.0);
+        }
+        for k in 0..40 {
+            let course = if k % 2 == 0 { 15.0 } else { -15.0 };
+            let (d, _) = no_acc(&mut st, 1.5, course);
+            if k >= 20 {
+                let lead = wrap_rad(d.psi - st.psi).to_degrees();
+                assert!(lead.abs() < 0.5, "epoch {k}: led by {lead}°: {st:?}");
+            }
+        }
+    }
 }

@@ -61,6 +61,9 @@ pub struct StepState {
     ///
     /// [`LEAD_YAW_TAU_S`]: crate::modes::LEAD_YAW_TAU_S
     pub turn: f32,
+    /// Mean square (rad²/s²) of the moving epochs' yaw rates around `turn`, smoothed
+    /// alike: how noisy `turn` is, so the lead can fade where the course is noise.
+    pub turn_var: f32,
     /// The run of plain motion on a steady course up to this epoch (speed at least
     /// [`RELEASE_SPEED`] and `3·sAcc`, course within [`RELEASE_COURSE_DEG`] of the run's
     /// last epoch), none when this epoch is not plain motion: the release rule's clock.
@@ -100,6 +103,7 @@ impl StepState {
         held_clean: false,
         yaw: 0.0,
         turn: 0.0,
+        turn_var: 0.0,
         motion: MotionRun::NONE,
         motion_alt: MotionRun::NONE,
         motion_skips: 0,
