@@ -68,7 +68,7 @@ pub use sigma::{
     SIGMA_KNOTS, TURN_SPEED,
 };
 pub use state::{HeldHeading, MotionRun, Step, StepState};
-pub use vehicle::{Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED};
+pub use vehicle::{Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED, HOLD_ZEROS_PER_CREEP};
 
 #[cfg(test)]
 mod tests {
@@ -218,7 +218,13 @@ mod tests {
         v.observe_hold(1.5, 0.0);
         assert!(v.holds_static(), "motion starts with a jump");
         v.observe_hold(0.05, 0.1);
-        assert!(!v.holds_static(), "a creeping speed");
+        assert!(!v.holds_static(), "as many creeping speeds as zeros");
+        // A stop that creeps for an epoch on its way down, then stands for 2 s at 5 Hz.
+        for _ in 0..10 {
+            v.observe_hold(0.0, 0.0);
+        }
+        v.observe_hold(0.2, 0.0);
+        assert!(v.holds_static(), "an epoch of creeping among zeros: {v:?}");
     }
 
     /// Leaving a stand, the step from the held heading to the first course (a spin in
