@@ -23,6 +23,14 @@
 //!   speeds the receiver reports when slow (a low quantile: a stopped vehicle's speed is
 //!   pure noise). At speed, a velocity change a car cannot make in `dt` (over
 //!   `a_max·dt`) is a glitch and is not used (at most `max_skips` in a row).
+//! * **Receivers lag.** A receiver that holds static (exact zeros at rest, hardly ever a
+//!   creeping speed) runs a navigation filter, and its course trails a turn by the
+//!   yaw rate times its lag. A vehicle not known to be a car is answered ahead of the
+//!   filter's heading by `atan(ω·τ)`: ω the yaw rate smoothed over `LEAD_YAW_TAU_S`
+//!   and shrunk by its own scatter (a noisy course is not differentiated), τ the
+//!   model's `lag_s`, or `hold_lag_s` for such a receiver. The filter's own state
+//!   follows the course; only the answer leads (the robots' consumer rows of
+//!   models/reports/unmet.md).
 //! * **A standing car stays put.** Its epochs within the noise (under 3σ) feed nothing
 //!   (no gain, no steering noise); it leaves rest only on a velocity reachable from rest since
 //!   the last used epoch, confirmed by the next epoch, and (for `axis_secs`) along the
