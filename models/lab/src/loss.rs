@@ -340,6 +340,7 @@ mod tests {
             sigma_v: 0.1,
             speed: 1.0,
             has_acc: true,
+            lead_s: 0.0,
         };
         type Case = ([f32; 3], Step, f32, Option<bool>);
         let cases: [Case; 6] = [

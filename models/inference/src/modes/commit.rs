@@ -13,6 +13,11 @@ pub const REVERSE_PRIOR: f32 = 4.0;
 /// follow a junction turn (a few seconds).
 pub const YAW_TAU_S: f32 = 1.0;
 
+/// Time constant of the yaw rate a lagging receiver's course is led by, s
+/// ([`StepState::turn`]): twice [`YAW_TAU_S`], since the lead multiplies its noise by
+/// the lag and a course is too noisy to differentiate at the rate a turn's σ uses.
+pub const LEAD_YAW_TAU_S: f32 = 2.0;
+
 /// The gain from the Kalman gain `k` and the network's log-odds correction `y`:
 /// `k·eʸ / (1 − k + k·eʸ)`; exactly 0 when `k` is 0 (a stop stays held) and `k` at `y = 0`.
 #[inline]
@@ -86,7 +91,7 @@ pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
     st.log_sigma = log_sigma.min(cap.ln());
     st.has_prior = true;
     Decision {
-        psi,
+        psi: psi + lead(st, step, dt),
         log_sigma: st.log_sigma,
         gain,
     }
@@ -101,11 +106,39 @@ fn update_yaw(st: &mut StepState, step: &Step, psi: f32, gain: f32, dt: f32) {
         return;
     }
     if !step.moving || step.hold || dt <= 0.0 {
-        st.yaw = 0.0;
+        (st.yaw, st.turn, st.turn_var) = (0.0, 0.0, 0.0);
         return;
     }
     let rate = wrap_rad(psi - step.prior) / dt;
     st.yaw += (dt / YAW_TAU_S).min(1.0) * (rate - st.yaw);
+    // Leaving a stand, the step is from a held heading to the first course: a turn in
+    // place or the held heading's error, not a rate the course will keep lagging by.
+    if st.moving_now() {
+        let a = (dt / LEAD_YAW_TAU_S).min(1.0);
+        let e = rate - st.turn;
+        st.turn_var += a * (e * e - st.turn_var);
+        st.turn += a * e;
+    } else {
+        (st.turn, st.turn_var) = (0.0, 0.0);
+    }
+}
+
+/// What the answer leads the filter's heading by (radians): a receiver whose velocity
+/// lags by τ reads a steady turn at rate ω as a course `atan(ωτ)` behind the heading.
+/// The filter itself follows the course (its state is not led); only a moving epoch's
+/// answer is, with the slowly filtered yaw rate [`StepState::turn`] shrunk by its own
+/// noise (`ω·ω²/(ω² + var)`, the variance from the rates' scatter around it): where
+/// the course is too noisy to differentiate (slow, poor sky, glitches), the lead fades.
+#[inline]
+fn lead(st: &StepState, step: &Step, dt: f32) -> f32 {
+    if step.lead_s <= 0.0 || step.hold || !step.moving || step.glitch {
+        return 0.0;
+    }
+    let a = (dt / LEAD_YAW_TAU_S).min(1.0);
+    let t2 = st.turn * st.turn;
+    let den = t2 + st.turn_var * a / (2.0 - a);
+    let w = if den > 0.0 { st.turn * t2 / den } else { 0.0 };
+    (w * step.lead_s).atan()
 }
 
 fn advance_clocks(st: &mut StepState, step: &Step, dt: f32) {

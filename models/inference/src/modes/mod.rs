@@ -23,6 +23,14 @@
 //!   speeds the receiver reports when slow (a low quantile: a stopped vehicle's speed is
 //!   pure noise). At speed, a velocity change a car cannot make in `dt` (over
 //!   `a_max·dt`) is a glitch and is not used (at most `max_skips` in a row).
+//! * **Receivers lag.** A receiver that holds static (exact zeros at rest, hardly ever a
+//!   creeping speed) runs a navigation filter, and its course trails a turn by the
+//!   yaw rate times its lag. A vehicle not known to be a car is answered ahead of the
+//!   filter's heading by `atan(ω·τ)`: ω the yaw rate smoothed over `LEAD_YAW_TAU_S`
+//!   and shrunk by its own scatter (a noisy course is not differentiated), τ the
+//!   model's `lag_s`, or `hold_lag_s` for such a receiver. The filter's own state
+//!   follows the course; only the answer leads (the robots' consumer rows of
+//!   models/reports/unmet.md).
 //! * **A standing car stays put.** Its epochs within the noise (under 3σ) feed nothing
 //!   (no gain, no steering noise); it leaves rest only on a velocity reachable from rest since
 //!   the last used epoch, confirmed by the next epoch, and (for `axis_secs`) along the
@@ -49,7 +57,9 @@ mod sigma;
 mod state;
 mod vehicle;
 
-pub use commit::{commit, corrected_gain, reverse_logit, Decision, REVERSE_PRIOR, YAW_TAU_S};
+pub use commit::{
+    commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR, YAW_TAU_S,
+};
 pub(crate) use noise::random_walk_variance;
 pub use params::ModeParams;
 pub use prepare::prepare;
@@ -66,7 +76,7 @@ pub use sigma::{
     PLATFORM_TURN_SHARE, PLATFORM_TURN_SPEED, SIGMA_KNOTS, TURN_SPEED,
 };
 pub use state::{HeldHeading, MotionRun, Step, StepState};
-pub use vehicle::{Platform, Vehicle, FAST_EPOCHS};
+pub use vehicle::{Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED, HOLD_ZEROS_PER_CREEP};
 
 #[cfg(test)]
 mod tests {
@@ -159,6 +169,111 @@ mod tests {
                     !st.reverse && off < 10.0,
                     "a robot drives on: {off}° {st:?}"
                 );
+            }
+        }
+    }
+
+    /// One 5 Hz epoch of a receiver without sAcc along `course_deg` at `speed` (exact
+    /// zeros at 0), filter alone: the answer and the course (radians).
+    fn no_acc(st: &mut StepState, speed: f32, course_deg: f32) -> (Decision, f32) {
+        let mp = ModeParams::default();
+        let c = course_deg.to_radians();
+        let step = prepare(
+            &mp,
+            0.5,
+            st,
+            speed * c.cos(),
+            speed * c.sin(),
+            f32::NAN,
+            0.2,
+        );
+        (commit(st, &step, &[0.0, 0.0, 0.0], 0.2), c)
+    }
+
+    /// A robot stands (at `rest` m/s), drives straight, then turns at 10°/s: how far
+    /// (degrees) the last answer is ahead of the last course.
+    fn lead_in_turn(platform: Platform, rest: f32) -> f32 {
+        let mut st = StepState::fresh(platform);
+        for _ in 0..10 {
+            no_acc(&mut st, rest, 0.0);
+        }
+        for _ in 0..10 {
+            no_acc(&mut st, 1.5, 0.0);
+        }
+        let mut last = (0.0, 0.0);
+        for k in 1..=25 {
+            let (d, c) = no_acc(&mut st, 1.5, 2.0 * k as f32);
+            last = (d.psi, c);
+        }
+        wrap_rad(last.0 - last.1).to_degrees()
+    }
+
+    /// A receiver that holds static (exact zeros at rest, no creeping speeds) runs a
+    /// navigation filter whose course lags a turn: a robot's answer leads its course by
+    /// the filtered yaw rate times `hold_lag_s` (10°/s × 0.5 s ≈ 5°). A receiver that
+    /// shows its noise at rest, and a car, are answered along the course.
+    #[test]
+    fn a_static_hold_receivers_course_is_led_through_a_turn() {
+        let lead = lead_in_turn(Platform::Robot, 0.0);
+        assert!((3.0..6.0).contains(&lead), "static hold: {lead}°");
+        let lead = lead_in_turn(Platform::Robot, 0.1);
+        assert!(lead.abs() < 1.0, "creeping at rest: {lead}°");
+        let lead = lead_in_turn(Platform::Car, 0.0);
+        assert!(lead.abs() < 1.0, "a car: {lead}°");
+        let mut v = Vehicle::UNKNOWN;
+        v.observe_hold(0.0, 0.0);
+        assert!(v.holds_static());
+        v.observe_hold(1.5, 0.0);
+        assert!(v.holds_static(), "motion starts with a jump");
+        v.observe_hold(0.05, 0.1);
+        assert!(!v.holds_static(), "as many creeping speeds as zeros");
+        // A stop that creeps for an epoch on its way down, then stands for 2 s at 5 Hz.
+        for _ in 0..10 {
+            v.observe_hold(0.0, 0.0);
+        }
+        v.observe_hold(0.2, 0.0);
+        assert!(v.holds_static(), "an epoch of creeping among zeros: {v:?}");
+    }
+
+    /// Leaving a stand, the step from the held heading to the first course (a spin in
+    /// place) is no turn the course lags: the answers after it follow the new course.
+    #[test]
+    fn leaving_a_stand_is_not_led() {
+        let mut st = StepState::fresh(Platform::Robot);
+        for _ in 0..10 {
+            no_acc(&mut st, 0.0, 0.0);
+        }
+        for _ in 0..10 {
+            no_acc(&mut st, 1.5, 0.0);
+        }
+        for _ in 0..10 {
+            no_acc(&mut st, 0.0, 0.0);
+        }
+        for _ in 0..3 {
+            let (d, c) = no_acc(&mut st, 1.5, 120.0);
+            let off = wrap_rad(d.psi - c).to_degrees();
+            assert!(
+                off.abs() < 1.0,
+                "{off}° off the course after a spin: {st:?}"
+            );
+        }
+    }
+
+    /// A course that zig-zags ±15° about a straight line (a noisy receiver) reads as
+    /// rates of ±150°/s; smoothed, they leave a few °/s of swing that a lead would turn
+    /// into degrees of error. Shrunk by their scatter, the lead stays under half a degree.
+    #[test]
+    fn a_noisy_course_is_not_led() {
+        let mut st = StepState::fresh(Platform::Robot);
+        for _ in 0..10 {
+            no_acc(&mut st, 0.0, 0.0);
+        }
+        for k in 0..40 {
+            let course = if k % 2 == 0 { 15.0 } else { -15.0 };
+            let (d, _) = no_acc(&mut st, 1.5, course);
+            if k >= 20 {
+                let lead = wrap_rad(d.psi - st.psi).to_degrees();
+                assert!(lead.abs() < 0.5, "epoch {k}: led by {lead}°: {st:?}");
             }
         }
     }

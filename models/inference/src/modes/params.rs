@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::vehicle::Platform;
+use super::vehicle::{Platform, Vehicle};
 
 /// The mode filter's constants (stored in the model's metadata).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -61,6 +61,17 @@ pub struct ModeParams {
     pub axis_deg: f32,
     /// ...for at most this long (s), in case the held heading was wrong.
     pub axis_secs: f32,
+    /// A receiver's course lag (s) that the answered heading of a vehicle not known to
+    /// be a car leads by (the filtered yaw rate times the lag, see
+    /// [`crate::modes::commit`]); 0 for none. Own-log training fits it.
+    pub lag_s: f32,
+    /// The lag (s) assumed, when larger than `lag_s`, for a receiver that holds static
+    /// ([`Vehicle::holds_static`]): a static hold is part of a receiver's navigation
+    /// filter, and that filter lags the course. A third of the lag measured on a real
+    /// robot day's consumer receiver, the least the simulator's consumer style has.
+    ///
+    /// [`Vehicle::holds_static`]: crate::modes::Vehicle::holds_static
+    pub hold_lag_s: f32,
     /// The platform a source has unless its configuration says otherwise
     /// (`ghnet train --platform` records it; `auto` in older files).
     pub platform: Platform,
@@ -95,12 +106,28 @@ impl Default for ModeParams {
             max_skips: 3,
             axis_deg: 30.0,
             axis_secs: 2.0,
+            lag_s: 0.0,
+            hold_lag_s: 0.5,
             platform: Platform::Auto,
         }
     }
 }
 
 impl ModeParams {
+    /// The lag (s) the answered heading leads a vehicle's course by: none for a car
+    /// (its results are tuned without), `lag_s` or, for a receiver that holds static,
+    /// `hold_lag_s` if larger.
+    #[inline]
+    pub(super) fn lead_s(&self, v: &Vehicle) -> f32 {
+        if v.car {
+            0.0
+        } else if v.holds_static() {
+            self.lag_s.max(self.hold_lag_s)
+        } else {
+            self.lag_s
+        }
+    }
+
     /// Rayleigh quantile factor: the `noise_quantile` quantile of a stopped receiver's
     /// speed is this times its per-axis σ.
     #[inline]

@@ -23,7 +23,7 @@ pub fn prepare(
 ) -> Step {
     let speed = vn.hypot(ve);
     let course = ve.atan2(vn);
-    update_noise(mp, &mut st.vehicle, speed, acc);
+    update_noise(mp, &mut st.vehicle, vn, ve, acc);
     let run = track_motion(mp, st, vn, ve, acc, dt);
     keep_or_restore_held(st, run);
     let cap2 = cap2();
@@ -40,6 +40,7 @@ pub fn prepare(
         sigma_v: f32::NAN,
         speed,
         has_acc: acc.is_finite(),
+        lead_s: 0.0,
     };
     if !st.has_prior {
         return step;
@@ -88,6 +89,7 @@ pub fn prepare(
     step.rule_reverse = st.reverse;
     step.moving = moving;
     step.sigma_v = sig;
+    step.lead_s = mp.lead_s(&st.vehicle);
     step
 }
 

@@ -55,6 +55,15 @@ pub struct StepState {
     /// [`YAW_TAU_S`]: crate::modes::YAW_TAU_S
     /// [`SigmaMaps::yaw_s`]: crate::modes::SigmaMaps::yaw_s
     pub yaw: f32,
+    /// The yaw rate smoothed over [`LEAD_YAW_TAU_S`] (rad/s; 0 while standing): what the
+    /// answered heading leads a lagging receiver's course by ([`Step::lead_s`]). Slower
+    /// than `yaw`: differencing a noisy course is what makes extrapolation worse.
+    ///
+    /// [`LEAD_YAW_TAU_S`]: crate::modes::LEAD_YAW_TAU_S
+    pub turn: f32,
+    /// Mean square (rad²/s²) of the moving epochs' yaw rates around `turn`, smoothed
+    /// alike: how noisy `turn` is, so the lead can fade where the course is noise.
+    pub turn_var: f32,
     /// The run of plain motion on a steady course up to this epoch (speed at least
     /// [`RELEASE_SPEED`] and `3·sAcc`, course within [`RELEASE_COURSE_DEG`] of the run's
     /// last epoch), none when this epoch is not plain motion: the release rule's clock.
@@ -93,6 +102,8 @@ impl StepState {
         held_y2: 0.0,
         held_clean: false,
         yaw: 0.0,
+        turn: 0.0,
+        turn_var: 0.0,
         motion: MotionRun::NONE,
         motion_alt: MotionRun::NONE,
         motion_skips: 0,
@@ -156,6 +167,10 @@ pub struct Step {
     pub speed: f32,
     /// The receiver reported a speed accuracy (sAcc) with this epoch.
     pub has_acc: bool,
+    /// The receiver's course lag (s) the answer leads by ([`ModeParams::lead_s`]).
+    ///
+    /// [`ModeParams::lead_s`]: crate::modes::ModeParams
+    pub lead_s: f32,
 }
 
 /// A run of plain motion on a steady course (at least [`RELEASE_SPEED`] and `3·sAcc`,

@@ -3,6 +3,16 @@
 
 use serde::{Deserialize, Serialize};
 
+/// A receiver that holds static seldom reports a speed above zero and below this
+/// (m/s): its first moving epoch after a stand jumps past it.
+pub const HOLD_CREEP_SPEED: f32 = 0.25;
+
+/// A receiver holds static when its exact zeros outnumber its creeping speeds (under
+/// [`HOLD_CREEP_SPEED`]) this many times: a stand of a few seconds is all zeros, a
+/// slow stop may creep for an epoch or two on its way down, while a receiver that
+/// shows its noise at rest creeps at least as often as its quantized speed reads 0.
+pub const HOLD_ZEROS_PER_CREEP: u32 = 4;
+
 /// Fewest epochs above `fast_speed` that make a vehicle a car.
 pub const FAST_EPOCHS: u16 = 5;
 
@@ -72,6 +82,10 @@ pub struct Vehicle {
     pub scatter: f32,
     /// What the source's user says carries the receiver; kept through every reset.
     pub platform: Platform,
+    /// Epochs the receiver reported a velocity of exactly zero.
+    pub zeros: u32,
+    /// Epochs the receiver reported a speed above zero and below [`HOLD_CREEP_SPEED`].
+    pub creeps: u32,
 }
 
 impl Vehicle {
@@ -81,5 +95,26 @@ impl Vehicle {
         noise: f32::NAN,
         scatter: f32::NAN,
         platform: Platform::Auto,
+        zeros: 0,
+        creeps: 0,
     };
+
+    /// Record what one epoch's velocity says about a static hold.
+    #[inline]
+    pub fn observe_hold(&mut self, vn: f32, ve: f32) {
+        if vn == 0.0 && ve == 0.0 {
+            self.zeros = self.zeros.saturating_add(1);
+        } else if vn.hypot(ve) < HOLD_CREEP_SPEED {
+            self.creeps = self.creeps.saturating_add(1);
+        }
+    }
+
+    /// Whether the receiver holds static: it reports exactly zero at rest and hardly
+    /// ever a creeping speed ([`HOLD_ZEROS_PER_CREEP`]), so motion starts with a jump.
+    /// Raw Doppler velocities (RTKLIB, most u-blox settings) and quantized NMEA speeds
+    /// show their noise at rest.
+    #[inline]
+    pub fn holds_static(&self) -> bool {
+        self.zeros > 0 && self.zeros >= HOLD_ZEROS_PER_CREEP.saturating_mul(self.creeps)
+    }
 }

@@ -1,7 +1,7 @@
 //! Fitting the mode filter to a user's own logs: what depends on the platform and the
 //! receiver (which platform, how fast it may turn while standing, how noisy the
 //! receiver is when it gives no accuracy, how far its accuracy is to be trusted, when
-//! an epoch moves, when a departure reverses) is chosen on the log itself, before the
+//! an epoch moves, when a departure reverses, how far its course lags) is chosen on the log itself, before the
 //! network is fine-tuned and the σ maps are fitted.
 //!
 //! Why a search and not gradients: the filter's rules are thresholds, and each
@@ -26,6 +26,11 @@ pub const MIN_GAIN: f32 = 0.005;
 
 /// Multiplicative steps tried on each constant per round.
 const STEPS: [f32; 4] = [0.5, 0.7, 1.4, 2.0];
+
+/// Receiver lags (s) tried for `lag_s` (and `hold_lag_s`, set alike: a lag fitted on
+/// the log replaces the one assumed from the receiver's static hold). A lag starts at
+/// 0, where multiplicative steps cannot move it, so it has a grid of its own.
+const LAGS: [f32; 6] = [0.0, 0.25, 0.5, 1.0, 1.5, 2.0];
 
 /// Rounds of the coordinate search.
 const ROUNDS: usize = 2;
@@ -127,7 +132,7 @@ pub fn fit_modes(model: &Model, tracks: &[LogTrack], platform: Option<Platform>)
         best_mae = mae_with(model, best, tracks);
     }
     for _ in 0..ROUNDS {
-        let mut moved = false;
+        let mut moved = fit_lag(model, tracks, &mut best, &mut best_mae);
         for knob in &KNOBS {
             for f in STEPS {
                 let mut cand = best;
@@ -155,11 +160,40 @@ pub fn fit_modes(model: &Model, tracks: &[LogTrack], platform: Option<Platform>)
     }
 }
 
+/// Try every lag of [`LAGS`] on `best`; true when one lowered `best_mae` by
+/// [`MIN_GAIN`].
+fn fit_lag(model: &Model, tracks: &[LogTrack], best: &mut ModeParams, best_mae: &mut f32) -> bool {
+    let mut moved = false;
+    for lag in LAGS {
+        let cand = ModeParams {
+            lag_s: lag,
+            hold_lag_s: lag,
+            ..*best
+        };
+        if cand == *best {
+            continue;
+        }
+        let m = mae_with(model, cand, tracks);
+        if m < *best_mae * (1.0 - MIN_GAIN) {
+            (*best, *best_mae, moved) = (cand, m, true);
+        }
+    }
+    moved
+}
+
 /// `name: old → new` for every constant that differs.
 fn changes(a: &ModeParams, b: &ModeParams) -> Vec<String> {
     let mut out = Vec::new();
     if a.platform != b.platform {
         out.push(format!("platform: {} → {}", a.platform, b.platform));
+    }
+    for (name, x, y) in [
+        ("lag_s", a.lag_s, b.lag_s),
+        ("hold_lag_s", a.hold_lag_s, b.hold_lag_s),
+    ] {
+        if x != y {
+            out.push(format!("{name}: {x} → {y}"));
+        }
     }
     for knob in &KNOBS {
         let (mut a, mut b) = (*a, *b);
@@ -193,5 +227,33 @@ mod tests {
         assert!(f.mae_after <= f.mae_before, "{f:?}");
         assert_eq!(f.modes.platform, Platform::Robot);
         assert!((mae_with(&model, f.modes, &tracks) - f.mae_after).abs() < 1e-4);
+    }
+
+    /// A robot's lagging receiver (the consumer style: velocity lagged 0.5–1.5 s) on a
+    /// model that assumes no lag: the search finds one and says so.
+    #[test]
+    fn fit_modes_finds_a_receivers_lag() {
+        let builtin = Model::builtin("ghnet-temporal").expect("built in");
+        let none = ModeParams {
+            lag_s: 0.0,
+            hold_lag_s: 0.0,
+            ..modes_of(&builtin)
+        };
+        let model = with_modes(&builtin, none);
+        let p = crate::drive::DriveParams {
+            tracks: 4,
+            track_min_s: 150.0,
+            track_max_s: 200.0,
+            receivers: vec![crate::drive::ReceiverKind::Consumer],
+            rates_hz: vec![5],
+            ..crate::drive::DriveParams::default().robots()
+        };
+        let tracks: Vec<LogTrack> = crate::drive::simulate(&p, 11)
+            .iter()
+            .map(LogTrack::from)
+            .collect();
+        let f = fit_modes(&model, &tracks, Some(Platform::Robot));
+        assert!(f.modes.lag_s > 0.0, "{f:?}");
+        assert!(f.changes.iter().any(|c| c.starts_with("lag_s")), "{f:?}");
     }
 }
