@@ -151,7 +151,8 @@ pub fn advance(
 /// epoch's (trained on noise it cannot see through, it would only make σ jitter).
 /// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
 /// A car moving at speed then gains the turn term, a platform moving its share of it
-/// ([`crate::modes::SigmaMaps::with_turn`]), and one whose receiver reports no speed
+/// ([`crate::modes::SigmaMaps::with_turn`]) unless its answer is led past its
+/// receiver's lag ([`crate::modes::Step::lead_s`]; the share stands for that lag), and one whose receiver reports no speed
 /// accuracy its lag term ([`crate::modes::SigmaMaps::with_lag`]).
 /// A car or platform moving at [`crate::modes::TURN_SPEED`] or faster has a σ of at
 /// least the course scatter the source has shown at speed over the speed
@@ -191,7 +192,14 @@ pub fn reported_sigma(
         .exp();
     let car = st.vehicle.car;
     let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
-    let sigma = maps.with_turn(car, moved, step.speed, mapped, st.yaw);
+    // A led answer (a platform on a lagging receiver) has had the lag the platform's
+    // turn share stands for taken out: it keeps its class map's σ.
+    let turn_yaw = if !car && step.lead_s > 0.0 {
+        0.0
+    } else {
+        st.yaw
+    };
+    let sigma = maps.with_turn(car, moved, step.speed, mapped, turn_yaw);
     let sigma = maps.with_lag(step.has_acc, car, moved, step.speed, sigma, st.yaw);
     let scatter = st.vehicle.scatter;
     // Only a receiver noisier than the filter takes it to be: where the scatter is
@@ -211,5 +219,52 @@ pub fn reported_sigma(
         sigma.max(floor.min(MAX_STD_DEG))
     } else {
         sigma
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::modes::{SigmaMaps, Step, StepState};
+
+    /// A platform moving at 1.5 m/s through a 20 °/s turn: its σ carries its share of
+    /// the turn term unless its answer is led (the lead takes out the lag that share
+    /// stands for), in which case it keeps its class map's σ.
+    #[test]
+    fn a_led_platform_answer_drops_the_turn_share() {
+        let maps = SigmaMaps {
+            yaw_s: 1.0,
+            ..SigmaMaps::default()
+        };
+        let mut st = StepState::EMPTY;
+        st.yaw = 20f32.to_radians();
+        st.t_still = 0.0;
+        let step = |lead_s: f32| Step {
+            course: 0.0,
+            prior: 0.0,
+            p: 0.0,
+            r2: 0.0,
+            k: 0.5,
+            rule_reverse: false,
+            moving: true,
+            hold: false,
+            glitch: false,
+            sigma_v: 0.1,
+            speed: 1.5,
+            has_acc: false,
+            lead_s,
+        };
+        let log_sigma = 5f32.to_radians().ln();
+        let map = maps.apply(false, true, false, 5.0);
+        let plain = reported_sigma(&step(0.0), log_sigma, 0.0, &st, &maps);
+        let led = reported_sigma(&step(0.5), log_sigma, 0.0, &st, &maps);
+        assert!(
+            plain > map + 1.0,
+            "unled: {plain}° against the map's {map}°"
+        );
+        assert!(
+            (led - map).abs() < 1e-3,
+            "led: {led}° against the map's {map}°"
+        );
     }
 }
