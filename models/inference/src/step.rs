@@ -152,8 +152,9 @@ pub fn advance(
 /// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
 /// A car moving at speed then gains the turn term, a platform moving its share of it
 /// ([`crate::modes::SigmaMaps::with_turn`]) unless its answer is led past its
-/// receiver's lag ([`crate::modes::Step::lead_s`]; the share stands for that lag), and one whose receiver reports no speed
-/// accuracy its lag term ([`crate::modes::SigmaMaps::with_lag`]).
+/// receiver's lag ([`crate::modes::Step::lead_s`]; the share stands for that lag),
+/// and a car whose receiver reports no speed accuracy its lag term
+/// ([`crate::modes::SigmaMaps::with_lag`]).
 /// A car or platform moving at [`crate::modes::TURN_SPEED`] or faster has a σ of at
 /// least the course scatter the source has shown at speed over the speed
 /// ([`crate::modes::SigmaMaps::scatter_k`]) when that scatter exceeds
