@@ -42,6 +42,9 @@
 //! `σ_v/ŝ` below the uniform σ), the model answers exactly what `kf` answers: the first
 //! epoch's course with the uniform σ. Nothing knows a parked car's heading; both share
 //! one convention there, so comparisons measure what happens after the first motion.
+//! One exception: a vehicle not known to be a car that creeps steadily for [`START_S`]
+//! (moving by its receiver's own accuracy, slower than `kf`'s gate) has started: it is
+//! going somewhere, not backing out of a parking space, and its course is its heading.
 //!
 //! The network ([`crate::stream`]) corrects this filter: `y₀` the gain in log-odds,
 //! `y₁` the reverse decision as a logit around the rule's (`±REVERSE_PRIOR`), `y₂` the
@@ -54,6 +57,7 @@ mod prepare;
 mod release;
 mod scatter;
 mod sigma;
+mod start;
 mod state;
 mod vehicle;
 
@@ -75,6 +79,7 @@ pub use sigma::{
     clean, SigmaMap, SigmaMaps, CLEAN_NOISE_RATIO, LAG_NONE_S, LAG_YAW_DEADBAND_DEG,
     PLATFORM_TURN_SHARE, PLATFORM_TURN_SPEED, SIGMA_KNOTS, TURN_SPEED,
 };
+pub use start::START_S;
 pub use state::{HeldHeading, MotionRun, Step, StepState};
 pub use vehicle::{Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED, HOLD_ZEROS_PER_CREEP};
 

@@ -56,7 +56,7 @@ fn sigma_v(mp: &ModeParams, v: &Vehicle, acc: f32) -> f32 {
 }
 
 /// A platform's velocity noise σ (m/s): its receiver's accuracy, or `tip_sigma_none`.
-fn platform_sigma_v(mp: &ModeParams, acc: f32) -> f32 {
+pub(super) fn platform_sigma_v(mp: &ModeParams, acc: f32) -> f32 {
     if acc.is_finite() {
         (mp.tip_acc_k * acc).max(mp.sigma_floor)
     } else {

@@ -5,6 +5,7 @@ use super::noise::{cap2, driving_variance, measured, measurement, still_variance
 use super::params::ModeParams;
 use super::release::{glitch, keep_or_restore_held, track_motion};
 use super::scatter::update_scatter;
+use super::start::started;
 use super::state::{Step, StepState};
 use super::vehicle::{Platform, FAST_EPOCHS};
 use crate::head::{wrap_rad, MAX_STD_DEG};
@@ -47,7 +48,8 @@ pub fn prepare(
     }
     if !st.moved {
         let (_, r) = measurement(speed, kf_sigma_v);
-        if r >= MAX_STD_DEG.to_radians() {
+        let crept = started(mp, st, speed, course, acc, dt);
+        if r >= MAX_STD_DEG.to_radians() && !crept {
             return step;
         }
         st.moved = true;

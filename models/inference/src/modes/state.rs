@@ -19,8 +19,20 @@ pub struct StepState {
     pub t_mode: f32,
     /// Reversing (course = heading + 180°).
     pub reverse: bool,
-    /// Whether the history has reached its first epoch the tuned `kf` would use.
+    /// Whether the history has started: its first epoch the tuned `kf` would use, or
+    /// [`START_S`] of steady slow motion (a vehicle not known to be a car).
+    ///
+    /// [`START_S`]: crate::modes::START_S
     pub moved: bool,
+    /// Seconds of steady slow motion before the start (see [`START_S`]).
+    ///
+    /// [`START_S`]: crate::modes::START_S
+    pub start_s: f32,
+    /// Course of that motion (following its epochs over about a second), radians;
+    /// NaN when none.
+    pub start_course: f32,
+    /// Epochs in a row that did not continue that motion.
+    pub start_skips: u8,
     /// Seconds continuously above `fast_speed`.
     pub t_fast: f32,
     /// Epochs continuously above `fast_speed`.
@@ -92,6 +104,9 @@ impl StepState {
         t_mode: 0.0,
         reverse: false,
         moved: false,
+        start_s: 0.0,
+        start_course: f32::NAN,
+        start_skips: 0,
         t_fast: 0.0,
         n_fast: 0,
         prev_speed: 0.0,

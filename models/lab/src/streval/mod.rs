@@ -285,7 +285,9 @@ fn row(
 /// an epoch whose speed passes the Kalman filter's measurement gate (`|v|² > 2σ_v²`,
 /// σ_v of the tuned `kf`), with the history rules of `max_gap_s`. Before that, nothing
 /// knows a parked vehicle's heading and every stateful model answers the first
-/// epoch's course (the shared start convention), so tables also show the MAE after it.
+/// epoch's course (the shared start convention; the temporal model starts earlier only
+/// on a long steady creep, `ghnet_inference::modes::START_S`), so tables also show the
+/// MAE after it.
 pub fn after_first_motion(tracks: &[LogTrack], sigma_v: f32, max_gap_s: f32) -> Vec<bool> {
     let cap = ghnet_inference::head::MAX_STD_DEG.to_radians();
     // The gate of `ghnet_inference::modes::prepare`: σ_v/ŝ under the uniform σ.
