@@ -47,9 +47,8 @@ pub fn prepare(
         return step;
     }
     if !st.moved {
-        let (_, r) = measurement(speed, kf_sigma_v);
         let crept = started(mp, st, speed, course, acc, dt);
-        if r >= MAX_STD_DEG.to_radians() && !crept {
+        if measurement(speed, kf_sigma_v).1 >= MAX_STD_DEG.to_radians() && !crept {
             return step;
         }
         st.moved = true;
