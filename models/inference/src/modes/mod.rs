@@ -196,15 +196,18 @@ mod tests {
     }
 
     /// A robot stands (at `rest` m/s), drives straight, then turns at 10°/s: how far
+    /// `n` epochs of `no_acc` at one speed and course.
+    fn run(st: &mut StepState, n: usize, speed: f32, course_deg: f32) {
+        for _ in 0..n {
+            no_acc(st, speed, course_deg);
+        }
+    }
+
     /// (degrees) the last answer is ahead of the last course.
     fn lead_in_turn(platform: Platform, rest: f32) -> f32 {
         let mut st = StepState::fresh(platform);
-        for _ in 0..10 {
-            no_acc(&mut st, rest, 0.0);
-        }
-        for _ in 0..10 {
-            no_acc(&mut st, 1.5, 0.0);
-        }
+        run(&mut st, 10, rest, 0.0);
+        run(&mut st, 10, 1.5, 0.0);
         let mut last = (0.0, 0.0);
         for k in 1..=25 {
             let (d, c) = no_acc(&mut st, 1.5, 2.0 * k as f32);
@@ -245,15 +248,9 @@ mod tests {
     #[test]
     fn leaving_a_stand_is_not_led() {
         let mut st = StepState::fresh(Platform::Robot);
-        for _ in 0..10 {
-            no_acc(&mut st, 0.0, 0.0);
-        }
-        for _ in 0..10 {
-            no_acc(&mut st, 1.5, 0.0);
-        }
-        for _ in 0..10 {
-            no_acc(&mut st, 0.0, 0.0);
-        }
+        run(&mut st, 10, 0.0, 0.0);
+        run(&mut st, 10, 1.5, 0.0);
+        run(&mut st, 10, 0.0, 0.0);
         for _ in 0..3 {
             let (d, c) = no_acc(&mut st, 1.5, 120.0);
             let off = wrap_rad(d.psi - c).to_degrees();
@@ -270,9 +267,7 @@ mod tests {
     #[test]
     fn a_noisy_course_is_not_led() {
         let mut st = StepState::fresh(Platform::Robot);
-        for _ in 0..10 {
-            no_acc(&mut st, 0.0, 0.0);
-        }
+        run(&mut st, 10, 0.0, 0.0);
         for k in 0..40 {
             let course = if k % 2 == 0 { 15.0 } else { -15.0 };
             let (d, _) = no_acc(&mut st, 1.5, course);

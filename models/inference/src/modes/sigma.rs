@@ -280,32 +280,18 @@ mod tests {
         let lagged = 3f32.hypot(LAG_NONE_S * (10.0 - LAG_YAW_DEADBAND_DEG));
         assert!((maps.with_lag(false, true, true, 8.0, 3.0, ten) - lagged).abs() < 1e-4);
         assert!((maps.with_lag(false, true, true, 8.0, 3.0, -ten) - lagged).abs() < 1e-4);
-        assert_eq!(
-            maps.with_lag(false, false, true, 8.0, 3.0, ten),
-            3.0,
-            "platform"
-        );
-        assert_eq!(
-            maps.with_lag(true, true, true, 8.0, 3.0, ten),
-            3.0,
-            "has sAcc"
-        );
-        assert_eq!(
-            maps.with_lag(false, true, false, 8.0, 3.0, ten),
-            3.0,
-            "standing"
-        );
-        assert_eq!(
-            maps.with_lag(false, true, true, 1.5, 3.0, ten),
-            3.0,
-            "slow car"
-        );
         let straight = LAG_YAW_DEADBAND_DEG.to_radians();
-        assert_eq!(
-            maps.with_lag(false, true, true, 8.0, 3.0, straight),
-            3.0,
-            "straight"
-        );
+        let kept = [
+            ((false, false, true, 8.0, ten), "platform"),
+            ((true, true, true, 8.0, ten), "has sAcc"),
+            ((false, true, false, 8.0, ten), "standing"),
+            ((false, true, true, 1.5, ten), "slow car"),
+            ((false, true, true, 8.0, straight), "straight"),
+        ];
+        for ((acc, car, moving, speed, yaw), what) in kept {
+            let s = maps.with_lag(acc, car, moving, speed, 3.0, yaw);
+            assert_eq!(s, 3.0, "{what}");
+        }
         let old = SigmaMaps::default();
         assert_eq!(
             old.with_lag(false, true, true, 8.0, 3.0, ten),

@@ -209,6 +209,14 @@ fn changes(a: &ModeParams, b: &ModeParams) -> Vec<String> {
 mod tests {
     use super::*;
 
+    /// The drives `p` simulates with `seed`, as logs.
+    fn simulated(p: &crate::drive::DriveParams, seed: u64) -> Vec<LogTrack> {
+        crate::drive::simulate(p, seed)
+            .iter()
+            .map(LogTrack::from)
+            .collect()
+    }
+
     /// The search never ends worse than it started, and a fixed platform is kept.
     #[test]
     fn fit_modes_never_worsens_and_keeps_a_fixed_platform() {
@@ -219,10 +227,7 @@ mod tests {
             track_max_s: 150.0,
             ..crate::drive::DriveParams::default().robots()
         };
-        let tracks: Vec<LogTrack> = crate::drive::simulate(&p, 5)
-            .iter()
-            .map(LogTrack::from)
-            .collect();
+        let tracks = simulated(&p, 5);
         let f = fit_modes(&model, &tracks, Some(Platform::Robot));
         assert!(f.mae_after <= f.mae_before, "{f:?}");
         assert_eq!(f.modes.platform, Platform::Robot);
@@ -248,10 +253,7 @@ mod tests {
             rates_hz: vec![5],
             ..crate::drive::DriveParams::default().robots()
         };
-        let tracks: Vec<LogTrack> = crate::drive::simulate(&p, 11)
-            .iter()
-            .map(LogTrack::from)
-            .collect();
+        let tracks = simulated(&p, 11);
         let f = fit_modes(&model, &tracks, Some(Platform::Robot));
         assert!(f.modes.lag_s > 0.0, "{f:?}");
         assert!(f.changes.iter().any(|c| c.starts_with("lag_s")), "{f:?}");
