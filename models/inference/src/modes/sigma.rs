@@ -241,19 +241,25 @@ pub const PLATFORM_TURN_SPEED: f32 = 1.0;
 mod tests {
     use super::*;
 
+    /// A yaw rate of 10 °/s (rad/s) and maps with turn term `yaw_s` (identity maps).
+    fn turning(yaw_s: f32) -> (f32, SigmaMaps) {
+        let maps = SigmaMaps {
+            yaw_s,
+            ..SigmaMaps::default()
+        };
+        (10f32.to_radians(), maps)
+    }
+
     /// The turn term grows the σ of a car moving at speed in quadrature (identity turn
     /// map: the sum as it is) and leaves slow and standing cars and older files (no
     /// term) alone; a platform moving at [`PLATFORM_TURN_SPEED`] or faster gets its
     /// share of the term, unmapped.
     #[test]
     fn turn_term_adds_in_quadrature_for_moving_vehicles() {
-        let ten = 10f32.to_radians();
-        let maps = SigmaMaps {
-            yaw_s: 0.4,
-            ..SigmaMaps::default()
-        };
-        assert!((maps.with_turn(true, true, 8.0, 3.0, ten) - 5.0).abs() < 1e-4);
-        assert!((maps.with_turn(true, true, 8.0, 3.0, -ten) - 5.0).abs() < 1e-4);
+        let (ten, maps) = turning(0.4);
+        for yaw in [ten, -ten] {
+            assert!((maps.with_turn(true, true, 8.0, 3.0, yaw) - 5.0).abs() < 1e-4);
+        }
         assert_eq!(maps.with_turn(true, true, 1.5, 3.0, ten), 3.0, "slow");
         assert_eq!(maps.with_turn(true, false, 8.0, 3.0, ten), 3.0, "standing");
         assert_eq!(
@@ -272,14 +278,11 @@ mod tests {
     /// epoch and an older file (no turn term) do not.
     #[test]
     fn lag_term_widens_only_receivers_without_accuracy() {
-        let ten = 10f32.to_radians();
-        let maps = SigmaMaps {
-            yaw_s: 1.0,
-            ..SigmaMaps::default()
-        };
+        let (ten, maps) = turning(1.0);
         let lagged = 3f32.hypot(LAG_NONE_S * (10.0 - LAG_YAW_DEADBAND_DEG));
-        assert!((maps.with_lag(false, true, true, 8.0, 3.0, ten) - lagged).abs() < 1e-4);
-        assert!((maps.with_lag(false, true, true, 8.0, 3.0, -ten) - lagged).abs() < 1e-4);
+        for yaw in [ten, -ten] {
+            assert!((maps.with_lag(false, true, true, 8.0, 3.0, yaw) - lagged).abs() < 1e-4);
+        }
         let straight = LAG_YAW_DEADBAND_DEG.to_radians();
         let kept = [
             ((false, false, true, 8.0, ten), "platform"),
