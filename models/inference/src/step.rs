@@ -193,14 +193,8 @@ pub fn reported_sigma(
         .exp();
     let car = st.vehicle.car;
     let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
-    // A led answer (a platform on a lagging receiver) has had the lag the platform's
-    // turn share stands for taken out: it keeps its class map's σ.
-    let turn_yaw = if !car && step.lead_s > 0.0 {
-        0.0
-    } else {
-        st.yaw
-    };
-    let sigma = maps.with_turn(car, moved, step.speed, mapped, turn_yaw);
+    let led = step.lead_s > 0.0;
+    let sigma = maps.with_turn(car, led, moved, step.speed, mapped, st.yaw);
     let sigma = maps.with_lag(step.has_acc, car, moved, step.speed, sigma, st.yaw);
     let scatter = st.vehicle.scatter;
     // Only a receiver noisier than the filter takes it to be: where the scatter is

@@ -13,11 +13,12 @@
 //!   does the network's reverse correction give it one: a platform that turned in place
 //!   at a stop and drives off the other way is driving forward.
 //! * **Cars do not turn in place; platforms do.** A vehicle counts as a car once it has
-//!   driven above `fast_speed` for `fast_secs` and `FAST_EPOCHS` epochs (kept across fix gaps: it is the same
-//!   vehicle). Until then it is treated as a platform that turns in place: its heading
-//!   random-walks while it stands (`q_tip`), there is no reverse mode, and slow motion is
-//!   trusted. A car's heading random-walks only with distance driven, as much as its
-//!   steering allows (`k_max`, `a_lat`), so a stopped car holds its heading exactly.
+//!   driven above `fast_speed` for `fast_secs` and `FAST_EPOCHS` epochs (kept across
+//!   fix gaps: it is the same vehicle). Until then it is treated as a platform that
+//!   turns in place: its heading random-walks while it stands (`q_tip`), there is no
+//!   reverse mode, and slow motion is trusted. A car's heading random-walks only with
+//!   distance driven, as much as its steering allows (`k_max`, `a_lat`), so a stopped
+//!   car holds its heading exactly.
 //! * **Receivers lie.** The measurement σ is the receiver's noise over the speed, with
 //!   the noise taken as the larger of the reported sAcc and a running estimate from the
 //!   speeds the receiver reports when slow (a low quantile: a stopped vehicle's speed is
@@ -229,17 +230,17 @@ mod tests {
         let lead = lead_in_turn(Platform::Car, 0.0);
         assert!(lead.abs() < 1.0, "a car: {lead}°");
         let mut v = Vehicle::UNKNOWN;
-        v.observe_hold(0.0, 0.0);
+        v.observe_hold(0.0);
         assert!(v.holds_static());
-        v.observe_hold(1.5, 0.0);
+        v.observe_hold(1.5);
         assert!(v.holds_static(), "motion starts with a jump");
-        v.observe_hold(0.05, 0.1);
+        v.observe_hold(0.05f32.hypot(0.1));
         assert!(!v.holds_static(), "as many creeping speeds as zeros");
         // A stop that creeps for an epoch on its way down, then stands for 2 s at 5 Hz.
         for _ in 0..10 {
-            v.observe_hold(0.0, 0.0);
+            v.observe_hold(0.0);
         }
-        v.observe_hold(0.2, 0.0);
+        v.observe_hold(0.2);
         assert!(v.holds_static(), "an epoch of creeping among zeros: {v:?}");
     }
 

@@ -30,9 +30,8 @@ pub(super) fn measurement(speed: f32, sigma: f32) -> (f32, f32) {
 /// Track the low quantile of slow speeds (a stopped receiver's noise) and whether the
 /// receiver holds static ([`Vehicle::observe_hold`]).
 #[inline]
-pub(super) fn update_noise(mp: &ModeParams, v: &mut Vehicle, vn: f32, ve: f32, acc: f32) {
-    v.observe_hold(vn, ve);
-    let speed = vn.hypot(ve);
+pub(super) fn update_noise(mp: &ModeParams, v: &mut Vehicle, speed: f32, acc: f32) {
+    v.observe_hold(speed);
     if !v.noise.is_finite() {
         let init = if acc.is_finite() { acc } else { 0.1 };
         v.noise = init * mp.quantile_factor();

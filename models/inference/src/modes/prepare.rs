@@ -24,7 +24,7 @@ pub fn prepare(
 ) -> Step {
     let speed = vn.hypot(ve);
     let course = ve.atan2(vn);
-    update_noise(mp, &mut st.vehicle, vn, ve, acc);
+    update_noise(mp, &mut st.vehicle, speed, acc);
     let run = track_motion(mp, st, vn, ve, acc, dt);
     keep_or_restore_held(st, run);
     let cap2 = cap2();

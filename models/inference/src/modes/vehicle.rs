@@ -99,12 +99,13 @@ impl Vehicle {
         creeps: 0,
     };
 
-    /// Record what one epoch's velocity says about a static hold.
+    /// Record what one epoch's speed says about a static hold (a speed of exactly zero
+    /// is a velocity of exactly zero).
     #[inline]
-    pub fn observe_hold(&mut self, vn: f32, ve: f32) {
-        if vn == 0.0 && ve == 0.0 {
+    pub fn observe_hold(&mut self, speed: f32) {
+        if speed == 0.0 {
             self.zeros = self.zeros.saturating_add(1);
-        } else if vn.hypot(ve) < HOLD_CREEP_SPEED {
+        } else if speed < HOLD_CREEP_SPEED {
             self.creeps = self.creeps.saturating_add(1);
         }
     }
