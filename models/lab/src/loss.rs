@@ -99,10 +99,11 @@ pub const REVERSE_WEIGHT: f32 = 0.2;
 /// `d = wrap(A + r·π − ψₚ)`: the MAE's
 /// gradient is `sign(e)·d/4` on `y₀` inside the clamp, and a surrogate with
 /// [`GAIN_LEAK`] of that slope outside it, so an epoch held (or followed) wrongly still
-/// pulls its gain back instead of sitting in a flat zone. The switch `y₁` gets a logistic loss towards `reverse`
-/// (the course is opposite to the true heading) when that label is known (`Some`);
-/// `y₂` (the correction of the step's `log σ`) the Gaussian likelihood of the detached
-/// error; `log σ`'s dependence on the gain is left out of the gradient (detached too).
+/// pulls its gain back instead of sitting in a flat zone. The switch `y₁` gets a
+/// logistic loss towards `reverse` (the course is opposite to the true heading) when
+/// that label is known (`Some`); `y₂` (the correction of the step's `log σ`) the
+/// Gaussian likelihood of the detached error; `log σ`'s dependence on the gain is left
+/// out of the gradient (detached too).
 #[allow(clippy::too_many_arguments)] // one epoch's numbers
 pub fn filter_loss(
     y: &[f32],

@@ -1,8 +1,8 @@
 //! Fitting the mode filter to a user's own logs: what depends on the platform and the
 //! receiver (which platform, how fast it may turn while standing, how noisy the
 //! receiver is when it gives no accuracy, how far its accuracy is to be trusted, when
-//! an epoch moves, when a departure reverses, how far its course lags) is chosen on the log itself, before the
-//! network is fine-tuned and the σ maps are fitted.
+//! an epoch moves, when a departure reverses, how far its course lags) is chosen on the
+//! log itself, before the network is fine-tuned and the σ maps are fitted.
 //!
 //! Why a search and not gradients: the filter's rules are thresholds, and each
 //! candidate is one streamed pass over the log (a few milliseconds for minutes of

@@ -165,9 +165,9 @@ pub struct Row {
     pub cells: Vec<Cell>,
     /// The longest run of `Held` answers of the last estimator among the row's epochs
     /// at a measured speed of [`HELD_MOVING_SPEED`] or faster, seconds (each epoch
-    /// counts until the next, at most its track's usual interval): a stop that outlives the motion, the
-    /// failure a filter fusing held headings cannot see. `None` for an estimator
-    /// without status.
+    /// counts until the next, at most its track's usual interval): a stop that outlives
+    /// the motion, the failure a filter fusing held headings cannot see. `None` for an
+    /// estimator without status.
     pub held_moving_s: Option<f64>,
 }
 
