@@ -239,6 +239,13 @@ pub const LAG_YAW_DEADBAND_DEG: f32 = 1.5;
 /// fitted on cars, whose course also leads the heading by the antenna's lever arm
 /// in a curve (the antenna a metre or two ahead of the rear axle); a platform's
 /// antenna sits near its turning centre, which leaves about the lag's share.
+///
+/// A receiver that does not lag (raw Doppler velocity, RTKLIB) is over-covered in
+/// its turns by this share (the robots' RTKLIB rows of models/reports/unmet.md), but
+/// only a static hold ([`crate::modes::Vehicle::holds_static`]) shows a navigation
+/// filter online: the simulator adds its receivers' noise after their lag, so a
+/// lagging receiver's velocity is as white as a raw one's and a test of whiteness
+/// (epoch-to-epoch differences against the noise) cannot tell them apart there.
 pub const PLATFORM_TURN_SHARE: f32 = 0.5;
 
 /// Speed (m/s) from which a moving platform's σ gets its share of the turn term:
