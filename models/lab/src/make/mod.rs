@@ -16,6 +16,7 @@
 //! parameters and seed produced it, so `ghnet eval --model X` regenerates exactly its
 //! held-out data without shipping data.
 
+pub mod blocks;
 pub mod epoch;
 pub mod kf;
 pub mod modes;

@@ -11,8 +11,9 @@ use ghnet_inference::head::Head;
 use ghnet_inference::weights::{ModelMeta, FORMAT};
 use ghnet_inference::{Arch, Model};
 
+use super::blocks::{with_modes, Scored, MIN_GAIN};
 use super::kf::kf_model;
-use super::modes::{fit_modes, mae_with, modes_of, with_modes};
+use super::modes::{fit_modes, modes_of};
 use super::temporal::train_logged;
 use crate::logs::{self, LogTrack};
 use crate::streval;
@@ -21,10 +22,11 @@ use crate::train::{self, Dataset, TrainConfig};
 
 /// `ghnet train --data ...`: the shipped model (or `--init`) fitted to the user's logs.
 /// First what depends on the platform and the receiver (the mode filter's constants,
-/// [`fit_modes`]) on the training part, kept only if the held-out
-/// part (the last 20% of each track) agrees; then the network fine-tuned and the σ maps
-/// fitted; the result is written only if it beats the starting model on the held-out
-/// part (else the starting model is, with a note). A log of minutes cannot train the
+/// [`fit_modes`]) on the training part, kept only if the held-out part (the last 20% of
+/// each track) confirms it ([`Scored::confirms_over`]: a gain outside its best minute,
+/// not one event's); then the network fine-tuned and the σ maps fitted; the result is
+/// written only if the held-out part confirms it over the starting model the same way
+/// (else the starting model is, with a note). A log of minutes cannot train the
 /// network from scratch, so the starting model is never random.
 pub fn train_data(
     paths: &[impl AsRef<Path>],
@@ -61,19 +63,26 @@ pub fn train_data(
         );
         with_modes(&base, cfg.modes)
     };
-    let base_va = mae_with(&base, modes_of(&base), &va);
-    let new_va = mae_with(&trained, cfg.modes, &va);
+    let base_va = Scored::of(&base, modes_of(&base), &va);
+    let new_va = Scored::of(&trained, cfg.modes, &va);
+    let confirmed = new_va.confirms_over(&base_va);
     eprintln!(
-        "held-out part: {new_va:.2}° fitted against {base_va:.2}° for {} as it is",
+        "held-out part: {:.2}° fitted against {:.2}° for {} as it is",
+        new_va.mae,
+        base_va.mae,
         base.name()
     );
-    let model = if new_va <= base_va {
+    // The same test as the mode fit's: a fine-tune that only moves one event of the
+    // held-out part is the held-out part's luck.
+    let model = if confirmed {
         trained
     } else {
-        eprintln!(
-            "the fitted model is worse on the held-out part: writing {} unchanged",
-            base.name()
-        );
+        if new_va.blocks != base_va.blocks {
+            eprintln!(
+                "the fitted model is not confirmed on the held-out part: writing {} unchanged",
+                base.name()
+            );
+        }
         base
     };
     // Named after the output, whatever it came from: consumers tell models by name.
@@ -123,21 +132,34 @@ fn own_config(
     };
     let t0 = std::time::Instant::now();
     let fitted = fit_modes(base, tr, platform);
-    let before = mae_with(base, modes, va);
-    let after = mae_with(base, fitted.modes, va);
+    let before = Scored::of(base, modes, va);
+    let after = Scored::of(base, fitted.modes, va);
     eprintln!(
-        "mode filter fitted in {:.1} s: training part {:.2}° → {:.2}°, held-out part {before:.2}° → {after:.2}°",
+        "mode filter fitted in {:.1} s: training part {:.2}° → {:.2}°, held-out part {:.2}° → {:.2}°",
         t0.elapsed().as_secs_f64(),
         fitted.mae_before,
-        fitted.mae_after
+        fitted.mae_after,
+        before.mae,
+        after.mae
     );
-    let mut chosen = if after <= before { fitted.modes } else { modes };
-    if after > before {
-        eprintln!("  kept the model's constants: the held-out part does not confirm the fit");
-    } else if fitted.changes.is_empty() {
+    eprintln!("  {}", fitted.platform_note);
+    eprintln!(
+        "  held-out gain outside its best minute: {:.1}%",
+        100.0 * after.gain_over(&before)
+    );
+    let confirmed = after.confirms_over(&before);
+    let mut chosen = if confirmed { fitted.modes } else { modes };
+    if fitted.changes.is_empty() {
         eprintln!("  no constant changed");
+    } else if !confirmed {
+        eprintln!(
+            "  kept the model's constants: the held-out part does not confirm the fit by {:.1}% \
+             outside its best minute (fitted: {})",
+            100.0 * MIN_GAIN,
+            fitted.changes.join(", ")
+        );
     }
-    for c in fitted.changes.iter().filter(|_| after <= before) {
+    for c in fitted.changes.iter().filter(|_| confirmed) {
         eprintln!("  {c}");
     }
     if let Some(p) = platform {
