@@ -4,11 +4,12 @@
 //! one departure taken the wrong way round, or one stop held through a turn, is off by
 //! up to 180° for seconds on end. A change of the mode filter's constants can win or
 //! lose a whole log's mean on one such event, and whether the next event goes the same
-//! way is a coin toss: a departure threshold fitted to the one reversal of a training
-//! half turned a car's next departures around on the other half (see
-//! `models/reports/ownlog.md` for how own-log training fares). What the receiver and
-//! the platform are shows throughout a log, so a change is credited only with the gain
-//! that remains once the stretch where it gains most is left out ([`Scored::gain_over`]).
+//! way is a coin toss: fitted by its mean, a u-blox car's departure threshold went to
+//! "never reverse" on the strength of one departure and turned the next ones around
+//! (the test `fit_modes_does_not_take_one_departures_gain`). What the receiver and the
+//! platform are shows throughout a log, so a change is credited only with the gain that
+//! remains once the stretch where it gains most is left out ([`Scored::gain_over`]).
+//! `models/ownlog.sh` measures how own-log training fares (`models/reports/ownlog.md`).
 
 use std::sync::Arc;
 

@@ -8,6 +8,7 @@ use std::sync::Arc;
 use anyhow::{bail, Context, Result};
 
 use ghnet_inference::head::Head;
+use ghnet_inference::modes::ModeParams;
 use ghnet_inference::weights::{ModelMeta, FORMAT};
 use ghnet_inference::{Arch, Model};
 
@@ -26,8 +27,9 @@ use crate::train::{self, Dataset, TrainConfig};
 /// each track) confirms it ([`Scored::confirms_over`]: a gain outside its best minute,
 /// not one event's); then the network fine-tuned and the σ maps fitted; the result is
 /// written only if the held-out part confirms it over the starting model the same way
-/// (else the starting model is, with a note). A log of minutes cannot train the
-/// network from scratch, so the starting model is never random.
+/// (else the starting model with the fitted mode filter, if that is confirmed, or the
+/// starting model as it is, with a note: `keep_confirmed`). A log of minutes cannot
+/// train the network from scratch, so the starting model is never random.
 pub fn train_data(
     paths: &[impl AsRef<Path>],
     output: &Path,
@@ -63,28 +65,7 @@ pub fn train_data(
         );
         with_modes(&base, cfg.modes)
     };
-    let base_va = Scored::of(&base, modes_of(&base), &va);
-    let new_va = Scored::of(&trained, cfg.modes, &va);
-    let confirmed = new_va.confirms_over(&base_va);
-    eprintln!(
-        "held-out part: {:.2}° fitted against {:.2}° for {} as it is",
-        new_va.mae,
-        base_va.mae,
-        base.name()
-    );
-    // The same test as the mode fit's: a fine-tune that only moves one event of the
-    // held-out part is the held-out part's luck.
-    let model = if confirmed {
-        trained
-    } else {
-        if new_va.blocks != base_va.blocks {
-            eprintln!(
-                "the fitted model is not confirmed on the held-out part: writing {} unchanged",
-                base.name()
-            );
-        }
-        base
-    };
+    let model = keep_confirmed(base, trained, cfg.modes, &va);
     // Named after the output, whatever it came from: consumers tell models by name.
     let mut meta = model.meta().clone();
     meta.name = name;
@@ -102,6 +83,42 @@ pub fn train_data(
         .with_context(|| format!("writing {}", output.display()))?;
     eprintln!("wrote {}", output.display());
     Ok(())
+}
+
+/// What `ghnet train --data` writes: `trained` (with the mode constants `modes`) if the
+/// held-out part `va` confirms it over `base` the way the mode fit's steps are
+/// confirmed ([`Scored::confirms_over`]: a fine-tune that only moves one event of the
+/// held-out part is the held-out part's luck); else `base` with `modes` alone, if that
+/// is confirmed (a fitted receiver is not lost with an unconfirmed fine-tune); else
+/// `base` as it is.
+fn keep_confirmed(base: Model, trained: Model, modes: ModeParams, va: &[LogTrack]) -> Model {
+    let base_va = Scored::of(&base, modes_of(&base), va);
+    let new_va = Scored::of(&trained, modes, va);
+    eprintln!(
+        "held-out part: {:.2}° fitted against {:.2}° for {} as it is",
+        new_va.mae,
+        base_va.mae,
+        base.name()
+    );
+    if new_va.confirms_over(&base_va) {
+        return trained;
+    }
+    let fitted = with_modes(&base, modes);
+    if modes != modes_of(&base) && Scored::of(&fitted, modes, va).confirms_over(&base_va) {
+        eprintln!(
+            "the fine-tuned network is not confirmed on the held-out part: writing {} with \
+             the fitted mode filter",
+            base.name()
+        );
+        return fitted;
+    }
+    if new_va.blocks != base_va.blocks {
+        eprintln!(
+            "the fitted model is not confirmed on the held-out part: writing {} unchanged",
+            base.name()
+        );
+    }
+    base
 }
 
 /// Fewest training epochs for `ghnet train --data` to fine-tune the network and refit
@@ -264,4 +281,43 @@ pub fn read_logs(
         bail!("no rows with velocity, time and truth");
     }
     Ok(logs::time_split(&all, val_fraction))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::make::modes::fit_modes;
+
+    /// A fine-tune the held-out part does not confirm (here a network whose weights are
+    /// tripled) does not take the confirmed mode fit (a receiver's lag) down with it.
+    #[test]
+    fn an_unconfirmed_fine_tune_keeps_the_fitted_mode_filter() {
+        let builtin = Model::builtin("ghnet-temporal").expect("built in");
+        let none = ModeParams {
+            lag_s: 0.0,
+            hold_lag_s: 0.0,
+            ..modes_of(&builtin)
+        };
+        let base = with_modes(&builtin, none);
+        let p = crate::drive::DriveParams {
+            tracks: 4,
+            track_min_s: 150.0,
+            track_max_s: 200.0,
+            receivers: vec![crate::drive::ReceiverKind::Consumer],
+            rates_hz: vec![5],
+            ..crate::drive::DriveParams::default().robots()
+        };
+        let tracks: Vec<LogTrack> = crate::drive::simulate(&p, 11)
+            .iter()
+            .map(LogTrack::from)
+            .collect();
+        let modes = fit_modes(&base, &tracks, Some(ghnet_inference::Platform::Robot)).modes;
+        assert!(modes.lag_s > 0.0);
+        let mut params = base.params().clone();
+        params.data_mut().iter_mut().for_each(|w| *w *= 3.0);
+        let broken = Model::new(params, base.meta().clone());
+        let kept = keep_confirmed(base.clone(), broken, modes, &tracks);
+        assert_eq!(kept.params().data(), base.params().data());
+        assert_eq!(modes_of(&kept), modes);
+    }
 }
