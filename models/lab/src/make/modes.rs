@@ -149,8 +149,15 @@ pub fn fit_modes(model: &Model, tracks: &[LogTrack], platform: Option<Platform>)
     let start = modes_of(model);
     let base = Scored::of(model, start, tracks);
     let (platforms, why) = platform_candidates(tracks, platform);
+    // A starting model's platform the log rules out (a robot's `--init` on a car's log)
+    // is not kept for want of a better one: the search starts from `auto` then.
+    let first = match platform {
+        Some(p) => p,
+        None if platforms.contains(&start.platform) => start.platform,
+        None => Platform::Auto,
+    };
     let mut best = ModeParams {
-        platform: platform.unwrap_or(start.platform),
+        platform: first,
         ..start
     };
     let mut best_s = Scored::of(model, best, tracks);
@@ -396,5 +403,23 @@ mod tests {
             modes_of(&model).flip_stop_deg,
             "{f:?}"
         );
+    }
+
+    /// A starting model fitted as a robot (`--init` of a robot's file) does not carry
+    /// its platform over to a log that drives at car speeds.
+    #[test]
+    fn a_robot_start_is_not_kept_on_a_car_log() {
+        let builtin = Model::builtin("ghnet-temporal").expect("built in");
+        let robot = with_modes(
+            &builtin,
+            ModeParams {
+                platform: Platform::Robot,
+                ..modes_of(&builtin)
+            },
+        );
+        let mut speeds = vec![0.0; 20];
+        speeds.extend(vec![9.0; 40]);
+        let f = fit_modes(&robot, &[at_speeds(&speeds)], None);
+        assert_ne!(f.modes.platform, Platform::Robot, "{f:?}");
     }
 }

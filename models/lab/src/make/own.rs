@@ -10,11 +10,11 @@ use anyhow::{bail, Context, Result};
 use ghnet_inference::head::Head;
 use ghnet_inference::modes::ModeParams;
 use ghnet_inference::weights::{ModelMeta, FORMAT};
-use ghnet_inference::{Arch, Model};
+use ghnet_inference::{Arch, Model, Platform};
 
 use super::blocks::{with_modes, Scored, MIN_GAIN};
 use super::kf::kf_model;
-use super::modes::{fit_modes, modes_of};
+use super::modes::{fit_modes, modes_of, platform_candidates};
 use super::temporal::train_logged;
 use crate::logs::{self, LogTrack};
 use crate::streval;
@@ -44,6 +44,7 @@ pub fn train_data(
         return train_restricted(&tr, &va, output, lo, hi, seed, epochs);
     }
     let base = Model::from_name_or_path(init.unwrap_or(ghnet_inference::DEFAULT_MODEL))?;
+    let base = allowed_platform(base, &tr, platform);
     let (cfg, kf) = own_config(&base, &tr, &va, platform)?;
     let cfg = TemporalConfig {
         seed: seed.unwrap_or(cfg.seed),
@@ -83,6 +84,29 @@ pub fn train_data(
         .with_context(|| format!("writing {}", output.display()))?;
     eprintln!("wrote {}", output.display());
     Ok(())
+}
+
+/// `base`, or `base` on `auto` when the log rules out its platform
+/// ([`platform_candidates`]: a robot's `--init` on a log driven at car speeds), so that
+/// neither the fit nor a fallback to the starting model writes a car as a robot.
+fn allowed_platform(base: Model, tr: &[LogTrack], platform: Option<Platform>) -> Model {
+    let modes = modes_of(&base);
+    let (allowed, why) = platform_candidates(tr, platform);
+    if platform.is_some() || allowed.contains(&modes.platform) {
+        return base;
+    }
+    eprintln!(
+        "{}'s platform {} is ruled out ({why}): starting from auto",
+        base.name(),
+        modes.platform
+    );
+    with_modes(
+        &base,
+        ModeParams {
+            platform: Platform::Auto,
+            ..modes
+        },
+    )
 }
 
 /// What `ghnet train --data` writes: `trained` (with the mode constants `modes`) if the
@@ -319,5 +343,37 @@ mod tests {
         let kept = keep_confirmed(base.clone(), broken, modes, &tracks);
         assert_eq!(kept.params().data(), base.params().data());
         assert_eq!(modes_of(&kept), modes);
+    }
+
+    /// A robot's `--init` on a log driven at car speeds starts from `auto`, so that a
+    /// fallback to the starting model cannot write a car as a robot; a platform the
+    /// user gives stands.
+    #[test]
+    fn a_car_log_rules_out_a_robot_start() {
+        let builtin = Model::builtin("ghnet-temporal").expect("built in");
+        let robot = ModeParams {
+            platform: Platform::Robot,
+            ..modes_of(&builtin)
+        };
+        let n = 60;
+        let car = LogTrack {
+            key: "0".into(),
+            platform: None,
+            t_s: (0..n).map(|i| i as f64).collect(),
+            v_north: vec![9.0; n],
+            v_east: vec![0.0; n],
+            speed_acc: vec![f32::NAN; n],
+            truth_deg: vec![0.0; n],
+            true_speed: vec![f32::NAN; n],
+            receiver_course_deg: vec![f32::NAN; n],
+        };
+        let m = allowed_platform(
+            with_modes(&builtin, robot),
+            std::slice::from_ref(&car),
+            None,
+        );
+        assert_eq!(modes_of(&m).platform, Platform::Auto);
+        let m = allowed_platform(with_modes(&builtin, robot), &[car], Some(Platform::Robot));
+        assert_eq!(modes_of(&m).platform, Platform::Robot);
     }
 }
