@@ -262,6 +262,29 @@ mod tests {
         }
     }
 
+    /// A car slowing to a stop (a lagging receiver's tail at walking pace) reads a spike
+    /// of 1.8 m/s a quarter turn off: from 0.5 m/s no car gets there in 0.2 s, so the
+    /// spike does not turn its heading, at any speed under `gate_speed`. Coming down
+    /// from speed is not gated: braking is harder than `a_max`.
+    #[test]
+    fn a_spike_out_of_slow_motion_does_not_turn_a_car() {
+        let mut st = StepState::fresh(Platform::Car);
+        run(&mut st, 5, 0.0, 86.0);
+        run(&mut st, 10, 3.5, 86.0);
+        for speed in [2.0, 1.2, 0.9, 0.7, 0.5] {
+            let (d, _) = no_acc(&mut st, speed, 86.0);
+            let off = wrap_rad(d.psi - 86f32.to_radians()).to_degrees();
+            assert!(off.abs() < 2.0, "braking at {speed} m/s: {off}° {st:?}");
+        }
+        let (d, _) = no_acc(&mut st, 1.8, 11.0);
+        assert!(st.skips == 1, "the spike is a glitch: {st:?}");
+        let off = wrap_rad(d.psi - 86f32.to_radians()).to_degrees();
+        assert!(off.abs() < 2.0, "turned by a spike: {off}° {st:?}");
+        let (d, _) = no_acc(&mut st, 0.4, 88.0);
+        let off = wrap_rad(d.psi - 86f32.to_radians()).to_degrees();
+        assert!(off.abs() < 3.0, "after the spike: {off}° {st:?}");
+    }
+
     /// A course that zig-zags ±15° about a straight line (a noisy receiver) reads as
     /// rates of ±150°/s; smoothed, they leave a few °/s of swing that a lead would turn
     /// into degrees of error. Shrunk by their scatter, the lead stays under half a degree.
