@@ -179,6 +179,38 @@ mod tests {
         }
     }
 
+    /// A car that backed out, stood, then drove off sideways for good turned in place:
+    /// it is no car, and a platform has no reverse mode, so its answer is its course,
+    /// not the course turned by the half turn it was reversing with.
+    #[test]
+    fn a_car_demoted_while_reversing_answers_its_course() {
+        let mp = ModeParams::default();
+        let mut st = StepState::EMPTY;
+        along(&mut st, 0.0, 0.0);
+        for _ in 0..8 {
+            along(&mut st, 8.0, 0.0);
+        }
+        for _ in 0..3 {
+            along(&mut st, 0.0, 0.0);
+        }
+        for _ in 0..3 {
+            along(&mut st, 1.0, 180.0);
+        }
+        assert!(st.vehicle.car && st.reverse, "backing out: {st:?}");
+        for _ in 0..3 {
+            along(&mut st, 0.0, 0.0);
+        }
+        let mut last = 0.0;
+        for _ in 0..6 {
+            let (s, c) = 90f32.to_radians().sin_cos();
+            let step = prepare(&mp, 0.5, &mut st, 1.5 * c, 1.5 * s, 0.1, 1.0);
+            last = commit(&mut st, &step, &[0.0, 0.0, 0.0], 1.0).psi;
+        }
+        assert!(!st.vehicle.car && !st.reverse, "turned in place: {st:?}");
+        let off = wrap_rad(last - 90f32.to_radians()).to_degrees();
+        assert!(off.abs() < 10.0, "{off}° off its course: {st:?}");
+    }
+
     /// One 5 Hz epoch of a receiver without sAcc along `course_deg` at `speed` (exact
     /// zeros at 0), filter alone: the answer and the course (radians).
     fn no_acc(st: &mut StepState, speed: f32, course_deg: f32) -> (Decision, f32) {

@@ -192,8 +192,7 @@ pub(super) fn glitch(
         // A second of plain motion on a steady course ends any stand: a car that did
         // not leave along its axis turned in place (or its held heading was wrong).
         if off_axis_of_held(mp, st, vn, ve, p, r) && st.vehicle.platform == Platform::Auto {
-            st.vehicle.car = false;
-            (st.t_fast, st.n_fast) = (0.0, 0);
+            demote(st);
         }
         false
     } else if standing {
@@ -208,8 +207,7 @@ pub(super) fn glitch(
         if !reject && moving && sideways && st.vehicle.platform == Platform::Auto {
             // It kept leaving sideways: it turned in place, so it is no car (a car
             // shows itself again by driving fast).
-            st.vehicle.car = false;
-            (st.t_fast, st.n_fast) = (0.0, 0);
+            demote(st);
         }
         reject
     } else {
@@ -224,6 +222,19 @@ pub(super) fn glitch(
         st.pending_v = [f32::NAN; 2];
     }
     reject
+}
+
+/// A car that left its stand sideways turned in place: it is no car (it shows itself
+/// again by driving fast), and a platform has no reverse mode, so a reversing car's
+/// heading becomes the direction it moves in (its course), not the one it held.
+fn demote(st: &mut StepState) {
+    st.vehicle.car = false;
+    (st.t_fast, st.n_fast) = (0.0, 0);
+    if st.reverse {
+        st.reverse = false;
+        st.t_mode = 0.0;
+        st.psi = wrap_rad(st.psi + std::f32::consts::PI);
+    }
 }
 
 /// Whether a velocity leaves a sure held heading's axis (further than `axis_deg` plus
