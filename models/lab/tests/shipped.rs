@@ -165,6 +165,11 @@ fn temporal_model_reproduces_its_committed_numbers() {
         m.metrics["kf_mae_deg"].as_f64().unwrap(),
         "kf mae_deg",
     );
+    close(
+        all.after_motion(model.name()).unwrap(),
+        m.metrics["after_first_motion"]["mae_deg"].as_f64().unwrap(),
+        "temporal mae_deg after first motion",
+    );
     // σ is honest in turns as on straights: every turn band of the cars at speed with
     // enough epochs keeps the 1σ share near a normal σ's and most of the tail within 2σ
     // (without the turn term: 51% and 40% within 1σ at 1.5–4 and ≥ 10 °/s, 71% within

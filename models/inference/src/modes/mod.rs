@@ -333,4 +333,33 @@ mod tests {
             }
         }
     }
+
+    /// A parked car on a noisy receiver (0.3 m/s per axis at rest) drives off along
+    /// its body at 1.1–1.3 m/s, under four times its noise on every other epoch: along
+    /// the sure held heading's axis three times the noise is motion, so the stand ends
+    /// within about a second instead of holding the departure for as long as it dips.
+    #[test]
+    fn a_noisy_car_driving_off_along_its_body_is_released() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut st = StepState::fresh(Platform::Car);
+        run(&mut st, 30, 10.0, 40.0);
+        run(&mut st, 10, 0.0, 40.0);
+        for _ in 0..300 {
+            let (n, e): (f32, f32) = (rng.random_range(-0.52..0.52), rng.random_range(-0.52..0.52));
+            no_acc(&mut st, n.hypot(e), e.atan2(n).to_degrees());
+        }
+        assert!(!st.released(), "released at rest: {st:?}");
+        let mut released_at = None;
+        for k in 0..15 {
+            let speed = if k % 2 == 0 { 1.3 } else { 1.1 };
+            no_acc(&mut st, speed, 40.0 + if k % 3 == 0 { 4.0 } else { -3.0 });
+            if st.released() {
+                released_at = Some(k);
+                break;
+            }
+        }
+        let k = released_at.expect("a departure along the body was never released");
+        assert!(k <= 6, "released on departure epoch {k}: {st:?}");
+    }
 }

@@ -22,8 +22,9 @@ pub const RELEASE_SPEED: f32 = 0.8;
 pub const RELEASE_S: f32 = 0.8;
 
 /// Largest receiver noise σ (m/s) the release rule's bar takes from the running
-/// estimate (the bar is 4σ): beyond it the estimate is more likely slow driving read
-/// as noise than a receiver that noisy at rest.
+/// estimate (the bar is 4σ, or [`RELEASE_NOISE_K_AXIS`]σ along a sure held heading's
+/// axis): beyond it the estimate is more likely slow driving read as noise than a
+/// receiver that noisy at rest.
 pub const RELEASE_NOISE_CAP: f32 = 0.3;
 
 /// [`RELEASE_NOISE_CAP`] at low rates (epochs [`RELEASE_LOW_RATE_DT`] apart or more):
@@ -34,6 +35,12 @@ pub const RELEASE_NOISE_CAP: f32 = 0.3;
 /// at 5 Hz and faster it is correlated over several epochs, and the lower bar released
 /// standing cars (the stopped rows of `reports/unmet.md`).
 pub const RELEASE_NOISE_CAP_LOW_RATE: f32 = 0.25;
+
+/// Times the capped noise σ that is plain motion along a sure held heading's axis
+/// (elsewhere 4): a departure along the body is what a car does, and a noisy receiver
+/// (σ near [`RELEASE_NOISE_CAP`]) driving off at 1–1.5 m/s dips under 4σ often enough
+/// to keep its stand for seconds.
+pub const RELEASE_NOISE_K_AXIS: f32 = 3.5;
 
 /// Shortest epoch interval (s) at which [`RELEASE_NOISE_CAP_LOW_RATE`] applies.
 pub const RELEASE_LOW_RATE_DT: f32 = 0.5;
@@ -273,18 +280,22 @@ pub(super) fn track_motion(
     };
     let noise = (st.vehicle.noise / mp.quantile_factor()).min(cap);
     let acc = if acc.is_finite() { acc } else { 0.0 };
-    let bar = RELEASE_SPEED.max(3.0 * acc).max(4.0 * noise);
-    let plain = speed >= bar;
+    let floor = RELEASE_SPEED.max(3.0 * acc);
     let v = [vn, ve];
     st.motion.since += dt;
     st.motion_alt.since += dt;
-    if !plain {
+    let course_sigma = noise.max(acc).max(mp.sigma_floor) / speed.max(f32::MIN_POSITIVE);
+    let p = (2.0 * st.log_sigma).exp();
+    let on_axis = !(st.has_prior && off_axis_of_held(mp, st, vn, ve, p, course_sigma));
+    // Along a sure held heading's axis, 3σ of noise is the bar: a receiver at rest
+    // rarely points its noise along the body for a second, and a departure along it
+    // changes the answer little if it was noise after all.
+    let along = on_axis && st.has_prior && p < mp.confident_deg.to_radians().powi(2);
+    let k = if along { RELEASE_NOISE_K_AXIS } else { 4.0 };
+    if speed < floor.max(k * noise) {
         (st.motion, st.motion_alt, st.motion_skips) = (MotionRun::NONE, MotionRun::NONE, 0);
         return RunStep::New;
     }
-    let course_sigma = noise.max(acc).max(mp.sigma_floor) / speed;
-    let p = (2.0 * st.log_sigma).exp();
-    let on_axis = !(st.has_prior && off_axis_of_held(mp, st, vn, ve, p, course_sigma));
     if st.motion.steady(mp, v) {
         // Skipped epochs' time does not count: two glitch bursts alike, apart, are not
         // a departure.
