@@ -179,6 +179,38 @@ mod tests {
         }
     }
 
+    /// A car that backed out, stood, then drove off sideways for good turned in place:
+    /// it is no car, and a platform has no reverse mode, so its answer is its course,
+    /// not the course turned by the half turn it was reversing with.
+    #[test]
+    fn a_car_demoted_while_reversing_answers_its_course() {
+        let mp = ModeParams::default();
+        let mut st = StepState::EMPTY;
+        along(&mut st, 0.0, 0.0);
+        for _ in 0..8 {
+            along(&mut st, 8.0, 0.0);
+        }
+        for _ in 0..3 {
+            along(&mut st, 0.0, 0.0);
+        }
+        for _ in 0..3 {
+            along(&mut st, 1.0, 180.0);
+        }
+        assert!(st.vehicle.car && st.reverse, "backing out: {st:?}");
+        for _ in 0..3 {
+            along(&mut st, 0.0, 0.0);
+        }
+        let mut last = 0.0;
+        for _ in 0..6 {
+            let (s, c) = 90f32.to_radians().sin_cos();
+            let step = prepare(&mp, 0.5, &mut st, 1.5 * c, 1.5 * s, 0.1, 1.0);
+            last = commit(&mut st, &step, &[0.0, 0.0, 0.0], 1.0).psi;
+        }
+        assert!(!st.vehicle.car && !st.reverse, "turned in place: {st:?}");
+        let off = wrap_rad(last - 90f32.to_radians()).to_degrees();
+        assert!(off.abs() < 10.0, "{off}° off its course: {st:?}");
+    }
+
     /// One 5 Hz epoch of a receiver without sAcc along `course_deg` at `speed` (exact
     /// zeros at 0), filter alone: the answer and the course (radians).
     fn no_acc(st: &mut StepState, speed: f32, course_deg: f32) -> (Decision, f32) {
@@ -294,6 +326,29 @@ mod tests {
                 "{off}° off the course after a spin: {st:?}"
             );
         }
+    }
+
+    /// A car slowing to a stop (a lagging receiver's tail at walking pace) reads a spike
+    /// of 1.8 m/s a quarter turn off: from 0.5 m/s no car gets there in 0.2 s, so the
+    /// spike does not turn its heading, at any speed under `gate_speed`. Coming down
+    /// from speed is not gated: braking is harder than `a_max`.
+    #[test]
+    fn a_spike_out_of_slow_motion_does_not_turn_a_car() {
+        let mut st = StepState::fresh(Platform::Car);
+        run(&mut st, 5, 0.0, 86.0);
+        run(&mut st, 10, 3.5, 86.0);
+        for speed in [2.0, 1.2, 0.9, 0.7, 0.5] {
+            let (d, _) = no_acc(&mut st, speed, 86.0);
+            let off = wrap_rad(d.psi - 86f32.to_radians()).to_degrees();
+            assert!(off.abs() < 2.0, "braking at {speed} m/s: {off}° {st:?}");
+        }
+        let (d, _) = no_acc(&mut st, 1.8, 11.0);
+        assert!(st.skips == 1, "the spike is a glitch: {st:?}");
+        let off = wrap_rad(d.psi - 86f32.to_radians()).to_degrees();
+        assert!(off.abs() < 2.0, "turned by a spike: {off}° {st:?}");
+        let (d, _) = no_acc(&mut st, 0.4, 88.0);
+        let off = wrap_rad(d.psi - 86f32.to_radians()).to_degrees();
+        assert!(off.abs() < 3.0, "after the spike: {off}° {st:?}");
     }
 
     /// A course that zig-zags ±15° about a straight line (a noisy receiver) reads as

@@ -150,7 +150,11 @@ pub(super) fn keep_or_restore_held(st: &mut StepState, step: RunStep) {
 /// Whether the glitch gate rejects this velocity: a change from the last used velocity
 /// that a car cannot make in the time since.
 ///
-/// At speed that is `a_max·dt` (at most `max_skips` epochs in a row). A standing car is
+/// At speed that is `a_max·dt` (at most `max_skips` epochs in a row), and so it is for a
+/// car whose last used velocity was slow (under `gate_speed`), whatever its speed now:
+/// a spike out of a slow creep or a stop's lagging tail turned held headings that the
+/// car then had to leave along. A car is not gated coming down from speed below
+/// `gate_speed` (braking reaches 1 g, beyond `a_max`). A standing car is
 /// stricter, because a held heading is only as good as the epochs it ignores: a burst
 /// of glitches at a stop used to turn it once `max_skips` ran out, and a single spike of
 /// 1–3 m/s at 1 Hz is within `a_max·dt`. So a standing car leaves rest only on a
@@ -174,7 +178,11 @@ pub(super) fn glitch(
     r: f32,
 ) -> bool {
     let standing = st.vehicle.car && st.t_still > 0.0;
-    let gated = speed > mp.gate_speed || standing;
+    // A car near rest cannot jump either: from a slow velocity it gains at most
+    // `a_max` per second, whatever its speed after. Only coming down from speed is a
+    // car not gated below `gate_speed`: it brakes harder than `a_max`.
+    let from_slow = st.vehicle.car && st.prev_v[0].hypot(st.prev_v[1]) <= mp.gate_speed;
+    let gated = speed > mp.gate_speed || standing || from_slow;
     // A car cannot change its velocity by more than `a_max` per second (plus the noise).
     let prev = st.prev_v;
     let unreachable = |secs: f32| (vn - prev[0]).hypot(ve - prev[1]) > mp.a_max * secs + 3.0 * sig;
@@ -184,8 +192,7 @@ pub(super) fn glitch(
         // A second of plain motion on a steady course ends any stand: a car that did
         // not leave along its axis turned in place (or its held heading was wrong).
         if off_axis_of_held(mp, st, vn, ve, p, r) && st.vehicle.platform == Platform::Auto {
-            st.vehicle.car = false;
-            (st.t_fast, st.n_fast) = (0.0, 0);
+            demote(st);
         }
         false
     } else if standing {
@@ -200,8 +207,7 @@ pub(super) fn glitch(
         if !reject && moving && sideways && st.vehicle.platform == Platform::Auto {
             // It kept leaving sideways: it turned in place, so it is no car (a car
             // shows itself again by driving fast).
-            st.vehicle.car = false;
-            (st.t_fast, st.n_fast) = (0.0, 0);
+            demote(st);
         }
         reject
     } else {
@@ -216,6 +222,19 @@ pub(super) fn glitch(
         st.pending_v = [f32::NAN; 2];
     }
     reject
+}
+
+/// A car that left its stand sideways turned in place: it is no car (it shows itself
+/// again by driving fast), and a platform has no reverse mode, so a reversing car's
+/// heading becomes the direction it moves in (its course), not the one it held.
+fn demote(st: &mut StepState) {
+    st.vehicle.car = false;
+    (st.t_fast, st.n_fast) = (0.0, 0);
+    if st.reverse {
+        st.reverse = false;
+        st.t_mode = 0.0;
+        st.psi = wrap_rad(st.psi + std::f32::consts::PI);
+    }
 }
 
 /// Whether a velocity leaves a sure held heading's axis (further than `axis_deg` plus

@@ -10,12 +10,14 @@
 //!   `ghnet calibrate`, which refits the σ maps alone.
 //! - [`kf`]: the Kalman filter baseline as a model, tuned on validation tracks.
 //! - [`own`]: models fitted to users' own logs (`ghnet train --data`), with the mode
-//!   filter's constants fitted to them first ([`modes`]).
+//!   filter's constants fitted to them first ([`modes`]); every change judged by the
+//!   gain outside the minute where it gains most ([`blocks`]).
 //!
 //! Every model file records in its `training_data` metadata which simulator,
 //! parameters and seed produced it, so `ghnet eval --model X` regenerates exactly its
 //! held-out data without shipping data.
 
+pub mod blocks;
 pub mod epoch;
 pub mod kf;
 pub mod modes;

@@ -8,8 +8,9 @@
 //! candidate is one streamed pass over the log (a few milliseconds for minutes of
 //! data), so a coordinate search over a few multiplicative steps per constant is both
 //! exact and fast. Each accepted step must lower the mean absolute error on the
-//! training part by at least [`MIN_GAIN`]; the caller keeps the result only if the
-//! held-out part agrees.
+//! training part by at least [`MIN_GAIN`] outside the stretch of the log where it gains
+//! most ([`super::blocks`]); the caller keeps the result only if the held-out part
+//! agrees the same way.
 
 use std::sync::Arc;
 
@@ -17,12 +18,9 @@ use ghnet_inference::modes::ModeParams;
 use ghnet_inference::weights::ModelKind;
 use ghnet_inference::{Model, Platform};
 
+use super::blocks::{with_modes, Scored, MIN_GAIN};
 use crate::logs::LogTrack;
 use crate::temporal::{mean_abs_deg, stream_errors};
-
-/// Smallest relative gain in MAE for a step of the search to be taken: smaller ones
-/// are as likely the log's noise as the receiver's nature.
-pub const MIN_GAIN: f32 = 0.005;
 
 /// Multiplicative steps tried on each constant per round.
 const STEPS: [f32; 4] = [0.5, 0.7, 1.4, 2.0];
@@ -79,16 +77,9 @@ pub struct FittedModes {
     pub mae_after: f32,
     /// One line per change, `name: old → new`.
     pub changes: Vec<String>,
-}
-
-/// `model` with the mode filter's constants `modes` (a temporal model; others come back
-/// unchanged).
-pub fn with_modes(model: &Model, modes: ModeParams) -> Model {
-    let mut meta = model.meta().clone();
-    if let ModelKind::Temporal { modes: m, .. } = &mut meta.kind {
-        *m = modes;
-    }
-    Model::new(model.params().clone(), meta)
+    /// Which platform was chosen and why: the platforms tried with their MAE, and
+    /// whether the log's speeds ruled out a robot.
+    pub platform_note: String,
 }
 
 /// The mode constants of a temporal `model` (the defaults for others).
@@ -104,35 +95,92 @@ pub fn mae_with(model: &Model, modes: ModeParams, tracks: &[LogTrack]) -> f32 {
     mean_abs_deg(&stream_errors(&Arc::new(with_modes(model, modes)), tracks).err)
 }
 
+/// Speed (m/s) above which a log's vehicle is a car: the turn-in-place platforms ghnet
+/// knows (delivery and Segway-class robots, mowers) drive at 0.3–2 m/s and none at a
+/// cyclist's pace, while a car passes it on any street.
+pub const CAR_SPEED: f32 = 5.0;
+
+/// Seconds a log must stay above [`CAR_SPEED`] to be a car's: a glitch or a burst of
+/// noise lasts an epoch or two, a drive along a street lasts longer.
+pub const CAR_SPEED_S: f64 = 10.0;
+
+/// Longest stretch (s) of `tracks` whose measured speed stays above [`CAR_SPEED`].
+pub fn car_speed_s(tracks: &[LogTrack]) -> f64 {
+    let mut longest: f64 = 0.0;
+    for t in tracks {
+        let mut start = None;
+        for i in 0..t.len() {
+            if t.v_north[i].hypot(t.v_east[i]) > CAR_SPEED {
+                let s = *start.get_or_insert(t.t_s[i]);
+                longest = longest.max(t.t_s[i] - s);
+            } else {
+                start = None;
+            }
+        }
+    }
+    longest
+}
+
+/// The platforms the fit may choose on `tracks` (`platform` when given), with why: a
+/// log that drives at car speeds ([`car_speed_s`]) is not fitted as a robot, which
+/// would take away the reverse mode a car needs at its next departure.
+pub fn platform_candidates(
+    tracks: &[LogTrack],
+    platform: Option<Platform>,
+) -> (Vec<Platform>, String) {
+    if let Some(p) = platform {
+        return (vec![p], format!("{p}, as given"));
+    }
+    let fast = car_speed_s(tracks);
+    if fast >= CAR_SPEED_S {
+        let why = format!("above {CAR_SPEED} m/s for {fast:.0} s, a car's speed: robot not tried");
+        (vec![Platform::Auto, Platform::Car], why)
+    } else {
+        let why = format!("never above {CAR_SPEED} m/s for {CAR_SPEED_S} s: robot tried");
+        (vec![Platform::Auto, Platform::Car, Platform::Robot], why)
+    }
+}
+
 /// Fit the platform (unless `platform` fixes it) and the receiver- and platform-
 /// dependent constants of `model`'s mode filter to `tracks` by coordinate search on
-/// the streamed MAE, the network as it is.
+/// the streamed error, the network as it is. A step is taken when it lowers the error
+/// by [`MIN_GAIN`] outside the stretch where it gains most ([`Scored::gain_over`]).
 pub fn fit_modes(model: &Model, tracks: &[LogTrack], platform: Option<Platform>) -> FittedModes {
     let start = modes_of(model);
-    let mae_before = mae_with(model, start, tracks);
-    let mut best = start;
-    let mut best_mae = mae_before;
-    let platforms = match platform {
-        Some(p) => vec![p],
-        None => vec![Platform::Auto, Platform::Car, Platform::Robot],
+    let base = Scored::of(model, start, tracks);
+    let (platforms, why) = platform_candidates(tracks, platform);
+    // A starting model's platform the log rules out (a robot's `--init` on a car's log)
+    // is not kept for want of a better one: the search starts from `auto` then.
+    let first = match platform {
+        Some(p) => p,
+        None if platforms.contains(&start.platform) => start.platform,
+        None => Platform::Auto,
     };
+    let mut best = ModeParams {
+        platform: first,
+        ..start
+    };
+    let mut best_s = Scored::of(model, best, tracks);
+    let mut tried = Vec::new();
     // The platform first: it decides which other constants matter.
     for p in platforms {
         let cand = ModeParams {
             platform: p,
-            ..start
+            ..best
         };
-        let m = mae_with(model, cand, tracks);
-        if m < best_mae * (1.0 - MIN_GAIN) || (cand.platform == start.platform && m <= best_mae) {
-            (best, best_mae) = (cand, m);
+        let s = Scored::of(model, cand, tracks);
+        tried.push(format!("{p} {:.2}°", s.mae));
+        if s.gain_over(&best_s) >= MIN_GAIN {
+            (best, best_s) = (cand, s);
         }
     }
-    if let Some(p) = platform {
-        best.platform = p;
-        best_mae = mae_with(model, best, tracks);
-    }
+    let platform_note = format!(
+        "platform {}: {why}; tried {}",
+        best.platform,
+        tried.join(", ")
+    );
     for _ in 0..ROUNDS {
-        let mut moved = fit_lag(model, tracks, &mut best, &mut best_mae);
+        let mut moved = fit_lag(model, tracks, &mut best, &mut best_s);
         for knob in &KNOBS {
             for f in STEPS {
                 let mut cand = best;
@@ -142,9 +190,9 @@ pub fn fit_modes(model: &Model, tracks: &[LogTrack], platform: Option<Platform>)
                     continue;
                 }
                 *v = new;
-                let m = mae_with(model, cand, tracks);
-                if m < best_mae * (1.0 - MIN_GAIN) {
-                    (best, best_mae, moved) = (cand, m, true);
+                let s = Scored::of(model, cand, tracks);
+                if s.gain_over(&best_s) >= MIN_GAIN {
+                    (best, best_s, moved) = (cand, s, true);
                 }
             }
         }
@@ -154,15 +202,16 @@ pub fn fit_modes(model: &Model, tracks: &[LogTrack], platform: Option<Platform>)
     }
     FittedModes {
         modes: best,
-        mae_before,
-        mae_after: best_mae,
+        mae_before: base.mae,
+        mae_after: best_s.mae,
         changes: changes(&start, &best),
+        platform_note,
     }
 }
 
-/// Try every lag of [`LAGS`] on `best`; true when one lowered `best_mae` by
-/// [`MIN_GAIN`].
-fn fit_lag(model: &Model, tracks: &[LogTrack], best: &mut ModeParams, best_mae: &mut f32) -> bool {
+/// Try every lag of [`LAGS`] on `best`; true when one gained [`MIN_GAIN`]
+/// ([`Scored::gain_over`]).
+fn fit_lag(model: &Model, tracks: &[LogTrack], best: &mut ModeParams, best_s: &mut Scored) -> bool {
     let mut moved = false;
     for lag in LAGS {
         let cand = ModeParams {
@@ -173,9 +222,9 @@ fn fit_lag(model: &Model, tracks: &[LogTrack], best: &mut ModeParams, best_mae: 
         if cand == *best {
             continue;
         }
-        let m = mae_with(model, cand, tracks);
-        if m < *best_mae * (1.0 - MIN_GAIN) {
-            (*best, *best_mae, moved) = (cand, m, true);
+        let s = Scored::of(model, cand, tracks);
+        if s.gain_over(best_s) >= MIN_GAIN {
+            (*best, *best_s, moved) = (cand, s, true);
         }
     }
     moved
@@ -257,5 +306,120 @@ mod tests {
         let f = fit_modes(&model, &tracks, Some(Platform::Robot));
         assert!(f.modes.lag_s > 0.0, "{f:?}");
         assert!(f.changes.iter().any(|c| c.starts_with("lag_s")), "{f:?}");
+    }
+
+    /// A log of `speeds` (m/s, one a second, heading north), as one track.
+    fn at_speeds(speeds: &[f32]) -> LogTrack {
+        let n = speeds.len();
+        LogTrack {
+            key: "0".into(),
+            platform: None,
+            t_s: (0..n).map(|i| i as f64).collect(),
+            v_north: speeds.to_vec(),
+            v_east: vec![0.0; n],
+            speed_acc: vec![f32::NAN; n],
+            truth_deg: vec![0.0; n],
+            true_speed: vec![f32::NAN; n],
+            receiver_course_deg: vec![f32::NAN; n],
+        }
+    }
+
+    /// A log that drives at a car's speed for long is not fitted as a robot (which
+    /// would lose the reverse mode); a robot's log with a glitch at 20 m/s still is
+    /// tried as one, and a platform the user gives is the only one tried.
+    #[test]
+    fn car_speeds_rule_out_a_robot() {
+        let mut car = vec![0.0; 30];
+        car.extend(vec![8.0; 15]);
+        let (ps, why) = platform_candidates(&[at_speeds(&car)], None);
+        assert!(!ps.contains(&Platform::Robot), "{why}");
+        assert!(ps.contains(&Platform::Car) && ps.contains(&Platform::Auto));
+        assert!(why.contains("robot not tried"), "{why}");
+        let mut robot = vec![1.5; 60];
+        robot[30] = 20.0;
+        robot[31] = 20.0;
+        assert!(car_speed_s(&[at_speeds(&robot)]) < CAR_SPEED_S);
+        let (ps, _) = platform_candidates(&[at_speeds(&robot)], None);
+        assert!(ps.contains(&Platform::Robot));
+        let (ps, _) = platform_candidates(&[at_speeds(&car)], Some(Platform::Robot));
+        assert_eq!(ps, vec![Platform::Robot]);
+    }
+
+    /// A 20-minute consumer car drive on which the robot platform's mean error is lower
+    /// than `auto`'s.
+    const SEED_ROBOT_WINS: u64 = 21;
+
+    /// A consumer-receiver car (static hold, lag): a robot's rules may lower such a log's
+    /// mean error (it gets the lead of a static-hold receiver), yet the fit keeps a car
+    /// that drives at car speeds off the robot platform and says why.
+    #[test]
+    fn fit_modes_keeps_a_fast_car_off_the_robot_platform() {
+        let model = Model::builtin("ghnet-temporal").expect("built in");
+        let p = crate::drive::DriveParams {
+            tracks: 1,
+            platform_share: 0.0,
+            track_min_s: 1200.0,
+            track_max_s: 1200.0,
+            receivers: vec![crate::drive::ReceiverKind::Consumer],
+            rates_hz: vec![5],
+            ..crate::drive::DriveParams::default()
+        };
+        let tracks = simulated(&p, SEED_ROBOT_WINS);
+        let robot = ModeParams {
+            platform: Platform::Robot,
+            ..modes_of(&model)
+        };
+        assert!(
+            mae_with(&model, robot, &tracks) < mae_with(&model, modes_of(&model), &tracks),
+            "the log no longer tempts the fit"
+        );
+        let f = fit_modes(&model, &tracks, None);
+        assert_ne!(f.modes.platform, Platform::Robot, "{f:?}");
+        assert!(f.platform_note.contains("robot not tried"), "{f:?}");
+    }
+
+    /// The first 8 minutes of a 20-minute u-blox car drive (the training part of its
+    /// first half): its mean error falls most when departures never reverse
+    /// (`flip_stop_deg` 180°), a gain made on one departure that turned the drive's
+    /// later departures around. Credited only outside its best minute, it is not taken.
+    #[test]
+    fn fit_modes_does_not_take_one_departures_gain() {
+        let model = Model::builtin("ghnet-temporal").expect("built in");
+        let p = crate::drive::DriveParams {
+            tracks: 1,
+            platform_share: 0.0,
+            track_min_s: 1200.0,
+            track_max_s: 1200.0,
+            receivers: vec![crate::drive::ReceiverKind::Ublox],
+            rates_hz: vec![5],
+            ..crate::drive::DriveParams::default()
+        };
+        let day = simulated(&p, 7301);
+        let half: Vec<LogTrack> = day.iter().map(|t| t.slice(0..t.len() / 2)).collect();
+        let (tr, _) = crate::logs::time_split(&half, 0.2);
+        let f = fit_modes(&model, &tr, None);
+        assert_eq!(
+            f.modes.flip_stop_deg,
+            modes_of(&model).flip_stop_deg,
+            "{f:?}"
+        );
+    }
+
+    /// A starting model fitted as a robot (`--init` of a robot's file) does not carry
+    /// its platform over to a log that drives at car speeds.
+    #[test]
+    fn a_robot_start_is_not_kept_on_a_car_log() {
+        let builtin = Model::builtin("ghnet-temporal").expect("built in");
+        let robot = with_modes(
+            &builtin,
+            ModeParams {
+                platform: Platform::Robot,
+                ..modes_of(&builtin)
+            },
+        );
+        let mut speeds = vec![0.0; 20];
+        speeds.extend(vec![9.0; 40]);
+        let f = fit_modes(&robot, &[at_speeds(&speeds)], None);
+        assert_ne!(f.modes.platform, Platform::Robot, "{f:?}");
     }
 }

@@ -8,11 +8,13 @@ use std::sync::Arc;
 use anyhow::{bail, Context, Result};
 
 use ghnet_inference::head::Head;
+use ghnet_inference::modes::ModeParams;
 use ghnet_inference::weights::{ModelMeta, FORMAT};
-use ghnet_inference::{Arch, Model};
+use ghnet_inference::{Arch, Model, Platform};
 
+use super::blocks::{with_modes, Scored, MIN_GAIN};
 use super::kf::kf_model;
-use super::modes::{fit_modes, mae_with, modes_of, with_modes};
+use super::modes::{fit_modes, modes_of, platform_candidates};
 use super::temporal::train_logged;
 use crate::logs::{self, LogTrack};
 use crate::streval;
@@ -21,11 +23,13 @@ use crate::train::{self, Dataset, TrainConfig};
 
 /// `ghnet train --data ...`: the shipped model (or `--init`) fitted to the user's logs.
 /// First what depends on the platform and the receiver (the mode filter's constants,
-/// [`fit_modes`]) on the training part, kept only if the held-out
-/// part (the last 20% of each track) agrees; then the network fine-tuned and the σ maps
-/// fitted; the result is written only if it beats the starting model on the held-out
-/// part (else the starting model is, with a note). A log of minutes cannot train the
-/// network from scratch, so the starting model is never random.
+/// [`fit_modes`]) on the training part, kept only if the held-out part (the last 20% of
+/// each track) confirms it ([`Scored::confirms_over`]: a gain outside its best minute,
+/// not one event's); then the network fine-tuned and the σ maps fitted; the result is
+/// written only if the held-out part confirms it over the starting model the same way
+/// (else the starting model with the fitted mode filter, if that is confirmed, or the
+/// starting model as it is, with a note: `keep_confirmed`). A log of minutes cannot
+/// train the network from scratch, so the starting model is never random.
 pub fn train_data(
     paths: &[impl AsRef<Path>],
     output: &Path,
@@ -40,6 +44,7 @@ pub fn train_data(
         return train_restricted(&tr, &va, output, lo, hi, seed, epochs);
     }
     let base = Model::from_name_or_path(init.unwrap_or(ghnet_inference::DEFAULT_MODEL))?;
+    let base = allowed_platform(base, &tr, platform);
     let (cfg, kf) = own_config(&base, &tr, &va, platform)?;
     let cfg = TemporalConfig {
         seed: seed.unwrap_or(cfg.seed),
@@ -61,21 +66,7 @@ pub fn train_data(
         );
         with_modes(&base, cfg.modes)
     };
-    let base_va = mae_with(&base, modes_of(&base), &va);
-    let new_va = mae_with(&trained, cfg.modes, &va);
-    eprintln!(
-        "held-out part: {new_va:.2}° fitted against {base_va:.2}° for {} as it is",
-        base.name()
-    );
-    let model = if new_va <= base_va {
-        trained
-    } else {
-        eprintln!(
-            "the fitted model is worse on the held-out part: writing {} unchanged",
-            base.name()
-        );
-        base
-    };
+    let model = keep_confirmed(base, trained, cfg.modes, &va);
     // Named after the output, whatever it came from: consumers tell models by name.
     let mut meta = model.meta().clone();
     meta.name = name;
@@ -93,6 +84,65 @@ pub fn train_data(
         .with_context(|| format!("writing {}", output.display()))?;
     eprintln!("wrote {}", output.display());
     Ok(())
+}
+
+/// `base`, or `base` on `auto` when the log rules out its platform
+/// ([`platform_candidates`]: a robot's `--init` on a log driven at car speeds), so that
+/// neither the fit nor a fallback to the starting model writes a car as a robot.
+fn allowed_platform(base: Model, tr: &[LogTrack], platform: Option<Platform>) -> Model {
+    let modes = modes_of(&base);
+    let (allowed, why) = platform_candidates(tr, platform);
+    if platform.is_some() || allowed.contains(&modes.platform) {
+        return base;
+    }
+    eprintln!(
+        "{}'s platform {} is ruled out ({why}): starting from auto",
+        base.name(),
+        modes.platform
+    );
+    with_modes(
+        &base,
+        ModeParams {
+            platform: Platform::Auto,
+            ..modes
+        },
+    )
+}
+
+/// What `ghnet train --data` writes: `trained` (with the mode constants `modes`) if the
+/// held-out part `va` confirms it over `base` the way the mode fit's steps are
+/// confirmed ([`Scored::confirms_over`]: a fine-tune that only moves one event of the
+/// held-out part is the held-out part's luck); else `base` with `modes` alone, if that
+/// is confirmed (a fitted receiver is not lost with an unconfirmed fine-tune); else
+/// `base` as it is.
+fn keep_confirmed(base: Model, trained: Model, modes: ModeParams, va: &[LogTrack]) -> Model {
+    let base_va = Scored::of(&base, modes_of(&base), va);
+    let new_va = Scored::of(&trained, modes, va);
+    eprintln!(
+        "held-out part: {:.2}° fitted against {:.2}° for {} as it is",
+        new_va.mae,
+        base_va.mae,
+        base.name()
+    );
+    if new_va.confirms_over(&base_va) {
+        return trained;
+    }
+    let fitted = with_modes(&base, modes);
+    if modes != modes_of(&base) && Scored::of(&fitted, modes, va).confirms_over(&base_va) {
+        eprintln!(
+            "the fine-tuned network is not confirmed on the held-out part: writing {} with \
+             the fitted mode filter",
+            base.name()
+        );
+        return fitted;
+    }
+    if new_va.blocks != base_va.blocks {
+        eprintln!(
+            "the fitted model is not confirmed on the held-out part: writing {} unchanged",
+            base.name()
+        );
+    }
+    base
 }
 
 /// Fewest training epochs for `ghnet train --data` to fine-tune the network and refit
@@ -123,21 +173,34 @@ fn own_config(
     };
     let t0 = std::time::Instant::now();
     let fitted = fit_modes(base, tr, platform);
-    let before = mae_with(base, modes, va);
-    let after = mae_with(base, fitted.modes, va);
+    let before = Scored::of(base, modes, va);
+    let after = Scored::of(base, fitted.modes, va);
     eprintln!(
-        "mode filter fitted in {:.1} s: training part {:.2}° → {:.2}°, held-out part {before:.2}° → {after:.2}°",
+        "mode filter fitted in {:.1} s: training part {:.2}° → {:.2}°, held-out part {:.2}° → {:.2}°",
         t0.elapsed().as_secs_f64(),
         fitted.mae_before,
-        fitted.mae_after
+        fitted.mae_after,
+        before.mae,
+        after.mae
     );
-    let mut chosen = if after <= before { fitted.modes } else { modes };
-    if after > before {
-        eprintln!("  kept the model's constants: the held-out part does not confirm the fit");
-    } else if fitted.changes.is_empty() {
+    eprintln!("  {}", fitted.platform_note);
+    eprintln!(
+        "  held-out gain outside its best minute: {:.1}%",
+        100.0 * after.gain_over(&before)
+    );
+    let confirmed = after.confirms_over(&before);
+    let mut chosen = if confirmed { fitted.modes } else { modes };
+    if fitted.changes.is_empty() {
         eprintln!("  no constant changed");
+    } else if !confirmed {
+        eprintln!(
+            "  kept the model's constants: the held-out part does not confirm the fit by {:.1}% \
+             outside its best minute (fitted: {})",
+            100.0 * MIN_GAIN,
+            fitted.changes.join(", ")
+        );
     }
-    for c in fitted.changes.iter().filter(|_| after <= before) {
+    for c in fitted.changes.iter().filter(|_| confirmed) {
         eprintln!("  {c}");
     }
     if let Some(p) = platform {
@@ -242,4 +305,75 @@ pub fn read_logs(
         bail!("no rows with velocity, time and truth");
     }
     Ok(logs::time_split(&all, val_fraction))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::make::modes::fit_modes;
+
+    /// A fine-tune the held-out part does not confirm (here a network whose weights are
+    /// tripled) does not take the confirmed mode fit (a receiver's lag) down with it.
+    #[test]
+    fn an_unconfirmed_fine_tune_keeps_the_fitted_mode_filter() {
+        let builtin = Model::builtin("ghnet-temporal").expect("built in");
+        let none = ModeParams {
+            lag_s: 0.0,
+            hold_lag_s: 0.0,
+            ..modes_of(&builtin)
+        };
+        let base = with_modes(&builtin, none);
+        let p = crate::drive::DriveParams {
+            tracks: 4,
+            track_min_s: 150.0,
+            track_max_s: 200.0,
+            receivers: vec![crate::drive::ReceiverKind::Consumer],
+            rates_hz: vec![5],
+            ..crate::drive::DriveParams::default().robots()
+        };
+        let tracks: Vec<LogTrack> = crate::drive::simulate(&p, 11)
+            .iter()
+            .map(LogTrack::from)
+            .collect();
+        let modes = fit_modes(&base, &tracks, Some(ghnet_inference::Platform::Robot)).modes;
+        assert!(modes.lag_s > 0.0);
+        let mut params = base.params().clone();
+        params.data_mut().iter_mut().for_each(|w| *w *= 3.0);
+        let broken = Model::new(params, base.meta().clone());
+        let kept = keep_confirmed(base.clone(), broken, modes, &tracks);
+        assert_eq!(kept.params().data(), base.params().data());
+        assert_eq!(modes_of(&kept), modes);
+    }
+
+    /// A robot's `--init` on a log driven at car speeds starts from `auto`, so that a
+    /// fallback to the starting model cannot write a car as a robot; a platform the
+    /// user gives stands.
+    #[test]
+    fn a_car_log_rules_out_a_robot_start() {
+        let builtin = Model::builtin("ghnet-temporal").expect("built in");
+        let robot = ModeParams {
+            platform: Platform::Robot,
+            ..modes_of(&builtin)
+        };
+        let n = 60;
+        let car = LogTrack {
+            key: "0".into(),
+            platform: None,
+            t_s: (0..n).map(|i| i as f64).collect(),
+            v_north: vec![9.0; n],
+            v_east: vec![0.0; n],
+            speed_acc: vec![f32::NAN; n],
+            truth_deg: vec![0.0; n],
+            true_speed: vec![f32::NAN; n],
+            receiver_course_deg: vec![f32::NAN; n],
+        };
+        let m = allowed_platform(
+            with_modes(&builtin, robot),
+            std::slice::from_ref(&car),
+            None,
+        );
+        assert_eq!(modes_of(&m).platform, Platform::Auto);
+        let m = allowed_platform(with_modes(&builtin, robot), &[car], Some(Platform::Robot));
+        assert_eq!(modes_of(&m).platform, Platform::Robot);
+    }
 }
