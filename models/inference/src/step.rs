@@ -248,6 +248,8 @@ mod tests {
             speed: 1.5,
             has_acc: false,
             lead_s,
+            lever_s: 0.0,
+            lever_max: 0.0,
         };
         let log_sigma = 5f32.to_radians().ln();
         let map = maps.apply(false, true, false, 5.0);

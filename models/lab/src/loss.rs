@@ -342,6 +342,8 @@ mod tests {
             speed: 1.0,
             has_acc: true,
             lead_s: 0.0,
+            lever_s: 0.0,
+            lever_max: 0.0,
         };
         type Case = ([f32; 3], Step, f32, Option<bool>);
         let cases: [Case; 6] = [

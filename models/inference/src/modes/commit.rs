@@ -124,21 +124,48 @@ fn update_yaw(st: &mut StepState, step: &Step, psi: f32, gain: f32, dt: f32) {
 }
 
 /// What the answer leads the filter's heading by (radians): a receiver whose velocity
-/// lags by τ reads a steady turn at rate ω as a course `atan(ωτ)` behind the heading.
-/// The filter itself follows the course (its state is not led); only a moving epoch's
-/// answer is, with the slowly filtered yaw rate [`StepState::turn`] shrunk by its own
-/// noise (`ω·ω²/(ω² + var)`, the variance from the rates' scatter around it): where
-/// the course is too noisy to differentiate (slow, poor sky, glitches), the lead fades.
+/// lags by τ reads a steady turn at rate ω as a course `atan(ωτ)` behind the heading;
+/// a car's antenna `L` ahead of its rear axle (the point without sideways velocity)
+/// moves at `(u, ω·L)` in body axes, so its course leads the heading by `atan(ω·L/u)`
+/// forward and, reversing, trails it (turned by a half turn) by `atan(ω·L/|u|)`: the
+/// answer takes that out ([`Step::lever_s`]). The filter itself follows the course
+/// (its state is not led); only a moving epoch's answer is, with the slowly filtered
+/// yaw rate [`StepState::turn`] shrunk by its own noise (`ω·ω²/(ω² + var)`, the
+/// variance from the rates' scatter around it): where the course is too noisy to
+/// differentiate (slow, poor sky, glitches), the lead fades.
 #[inline]
 fn lead(st: &StepState, step: &Step, dt: f32) -> f32 {
-    if step.lead_s <= 0.0 || step.hold || !step.moving || step.glitch {
+    if (step.lead_s <= 0.0 && step.lever_s <= 0.0) || step.hold || !step.moving || step.glitch {
         return 0.0;
     }
     let a = (dt / LEAD_YAW_TAU_S).min(1.0);
     let t2 = st.turn * st.turn;
     let den = t2 + st.turn_var * a / (2.0 - a);
     let w = if den > 0.0 { st.turn * t2 / den } else { 0.0 };
-    (w * step.lead_s).atan()
+    (w * step.lead_s).atan() - lever(w, st.reverse, step)
+}
+
+/// The lead (radians) a car's antenna course has over its heading at yaw rate `w`
+/// ([`lead`]): `atan(w·lever_s)`, the product capped at [`Step::lever_max`] and
+/// falling to 0 at twice it (no car turns that tight: not a car's turn).
+#[inline]
+fn lever(w: f32, reverse: bool, step: &Step) -> f32 {
+    let m = step.lever_max;
+    if step.lever_s <= 0.0 || m <= 0.0 {
+        return 0.0;
+    }
+    let x = w * step.lever_s;
+    let kept = if x.abs() <= m {
+        x.abs()
+    } else {
+        (2.0 * m - x.abs()).max(0.0)
+    };
+    let lead = kept.copysign(x).atan();
+    if reverse {
+        -lead
+    } else {
+        lead
+    }
 }
 
 fn advance_clocks(st: &mut StepState, step: &Step, dt: f32) {
@@ -161,5 +188,52 @@ fn advance_clocks(st: &mut StepState, step: &Step, dt: f32) {
     if !step.glitch || !st.prev_v[0].is_finite() {
         let (s, c) = step.course.sin_cos();
         st.prev_v = [step.speed * c, step.speed * s];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A step of a car at 1 m/s whose lever arm reads `lever_s` = 1.25 s, `k_max·L`
+    /// = 0.25.
+    fn car_step() -> Step {
+        Step {
+            course: 0.0,
+            prior: 0.0,
+            p: 0.0,
+            r2: 0.0,
+            k: 0.5,
+            rule_reverse: false,
+            moving: true,
+            hold: false,
+            glitch: false,
+            sigma_v: 0.1,
+            speed: 1.0,
+            has_acc: true,
+            lead_s: 0.0,
+            lever_s: 1.25,
+            lever_max: 0.25,
+        }
+    }
+
+    /// The lever's lead is `atan(ω·lever_s)`, the opposite reversing; a car turns no
+    /// tighter than it steers, so the product is capped at `k_max·L` and fades to 0
+    /// at twice it (a yaw rate no car reaches at that speed is not a car's turn).
+    #[test]
+    fn the_lever_is_capped_at_a_cars_tightest_turn() {
+        let step = car_step();
+        let w = 0.1;
+        assert!((lever(w, false, &step) - 0.125f32.atan()).abs() < 1e-6);
+        assert!((lever(w, true, &step) + 0.125f32.atan()).abs() < 1e-6);
+        assert!((lever(-0.2, false, &step) - (-0.25f32).atan()).abs() < 1e-6);
+        assert!((lever(0.3, false, &step) - 0.125f32.atan()).abs() < 1e-6);
+        assert_eq!(lever(0.5, false, &step), 0.0);
+        let platform = Step {
+            lever_s: 0.0,
+            lever_max: 0.0,
+            ..step
+        };
+        assert_eq!(lever(w, false, &platform), 0.0);
     }
 }

@@ -66,7 +66,7 @@ pub use commit::{
     commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR, YAW_TAU_S,
 };
 pub(crate) use noise::random_walk_variance;
-pub use params::ModeParams;
+pub use params::{ModeParams, LEVER_M};
 pub use prepare::prepare;
 pub use release::{
     RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT,
@@ -252,15 +252,14 @@ mod tests {
     /// A receiver that holds static (exact zeros at rest, no creeping speeds) runs a
     /// navigation filter whose course lags a turn: a robot's answer leads its course by
     /// the filtered yaw rate times `hold_lag_s` (10°/s × 0.5 s ≈ 5°). A receiver that
-    /// shows its noise at rest, and a car, are answered along the course.
+    /// shows its noise at rest is answered along the course; a car's answer trails it
+    /// by its antenna's lever arm (next test).
     #[test]
     fn a_static_hold_receivers_course_is_led_through_a_turn() {
         let lead = lead_in_turn(Platform::Robot, 0.0);
         assert!((3.0..6.0).contains(&lead), "static hold: {lead}°");
         let lead = lead_in_turn(Platform::Robot, 0.1);
         assert!(lead.abs() < 1.0, "creeping at rest: {lead}°");
-        let lead = lead_in_turn(Platform::Car, 0.0);
-        assert!(lead.abs() < 1.0, "a car: {lead}°");
         let mut v = Vehicle::UNKNOWN;
         v.observe_hold(0.0);
         assert!(v.holds_static());
@@ -274,6 +273,46 @@ mod tests {
         }
         v.observe_hold(0.2);
         assert!(v.holds_static(), "an epoch of creeping among zeros: {v:?}");
+    }
+
+    /// A car turning at 10°/s at 1.5 m/s (a junction) with its antenna [`LEVER_M`]
+    /// ahead of the rear axle: the course leads the heading by `atan(ω·L/v)`, which
+    /// the answer takes out as far as the lag's fade leaves it (`ModeParams::lever`;
+    /// the filter's own heading stays on the course). Reversing
+    /// out of a stand through the same turn, the course turned by a half turn trails
+    /// the heading, and the answer leads it. At 3 m/s a receiver's lag may outweigh
+    /// the lever: the answer keeps the course.
+    #[test]
+    fn a_cars_answer_takes_its_antennas_lever_arm_out() {
+        let mut car = Vehicle::UNKNOWN;
+        car.car = true;
+        let (lever_s, _) = ModeParams::default().lever(&car, 1.5);
+        assert!(lever_s > 0.0 && lever_s <= LEVER_M / 1.5);
+        let want = (10f32.to_radians() * lever_s).atan().to_degrees();
+        let lead = lead_in_turn(Platform::Car, 0.0);
+        // The yaw rate is still growing (smoothed over 2 s) and shrunk by its scatter.
+        let taken = 0.6 * want..want + 1.0;
+        assert!(taken.contains(&-lead), "forward: {lead}°, want −{want}°");
+        let mut st = StepState::fresh(Platform::Car);
+        run(&mut st, 10, 0.0, 0.0);
+        run(&mut st, 10, 1.5, 0.0);
+        run(&mut st, 10, 0.0, 0.0);
+        let mut last = (0.0, 0.0);
+        for k in 1..=25 {
+            let (d, c) = no_acc(&mut st, 1.5, 180.0 + 2.0 * k as f32);
+            last = (d.psi, c);
+        }
+        assert!(st.reverse, "reversing: {st:?}");
+        let lead = wrap_rad(last.0 - last.1 - std::f32::consts::PI).to_degrees();
+        assert!(taken.contains(&lead), "reversing: {lead}°, want {want}°");
+        let mut st = StepState::fresh(Platform::Car);
+        run(&mut st, 10, 0.0, 0.0);
+        run(&mut st, 10, 3.0, 0.0);
+        for k in 1..=25 {
+            let (d, c) = no_acc(&mut st, 3.0, 2.0 * k as f32);
+            let off = wrap_rad(d.psi - c).to_degrees();
+            assert!(off.abs() < 1.0, "3 m/s: {off}° off the course");
+        }
     }
 
     /// Leaving a stand, the step from the held heading to the first course (a spin in

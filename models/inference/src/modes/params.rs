@@ -4,6 +4,9 @@ use serde::{Deserialize, Serialize};
 
 use super::vehicle::{Platform, Vehicle};
 
+/// A car's lever arm when nothing else is known, m ([`ModeParams::lever_m`]).
+pub const LEVER_M: f32 = 1.0;
+
 /// The mode filter's constants (stored in the model's metadata).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -72,6 +75,16 @@ pub struct ModeParams {
     ///
     /// [`Vehicle::holds_static`]: crate::modes::Vehicle::holds_static
     pub hold_lag_s: f32,
+    /// How far (m) a car's antenna sits ahead of its rear axle, the point of the car
+    /// with no sideways velocity: turning at yaw rate ω at speed `v`, the antenna's
+    /// course leads the heading by `atan(ω·L/v)` (trails it reversing), and a car's
+    /// answer takes that out (see [`crate::modes::commit`]). Unknown for a car in
+    /// general: 1 m is where a passenger car's roof antenna sits (over the cabin, a
+    /// little behind the middle of a 2.6–2.8 m wheelbase; the shared real drive's car
+    /// reads about 1.1 m). The simulator's cars draw 0–2.5 m, trucks' cabs included,
+    /// and on them 1 m and the range's middle differ by a hundredth of a degree
+    /// (models/reports/unmet.md). Files without the field load it.
+    pub lever_m: f32,
     /// The platform a source has unless its configuration says otherwise
     /// (`ghnet train --platform` records it; `auto` in older files).
     pub platform: Platform,
@@ -108,6 +121,7 @@ impl Default for ModeParams {
             axis_secs: 2.0,
             lag_s: 0.0,
             hold_lag_s: 0.5,
+            lever_m: LEVER_M,
             platform: Platform::Auto,
         }
     }
@@ -128,10 +142,61 @@ impl ModeParams {
         }
     }
 
+    /// A car's lever arm at `speed` (m/s), as [`Step::lever_s`] and [`Step::lever_max`];
+    /// zeros for anything else (a platform turns about its antenna's neighbourhood).
+    /// The antenna's lead `ω·L/v` fades with speed while a navigation filter's lag
+    /// trail `ω·τ` does not: the correction takes a lagging receiver's error from
+    /// `|lead − trail|` to `|trail|`, better only while the lead is twice the trail.
+    /// With τ = `hold_lag_s` (the least lag of a receiver that filters) the correction
+    /// is whole up to `L/2τ` (1 m/s) and gone from `L/τ` (2 m/s); above, the
+    /// turn term of the σ ([`SigmaMaps::yaw_s`]) covers both as noise.
+    ///
+    /// [`Step::lever_s`]: crate::modes::Step
+    /// [`Step::lever_max`]: crate::modes::Step
+    /// [`SigmaMaps::yaw_s`]: crate::modes::SigmaMaps
+    #[inline]
+    pub(super) fn lever(&self, v: &Vehicle, speed: f32) -> (f32, f32) {
+        if !v.car || self.lever_m <= 0.0 || speed <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let fade = (2.0 - 2.0 * speed * self.hold_lag_s / self.lever_m).clamp(0.0, 1.0);
+        (
+            fade * self.lever_m / speed,
+            fade * self.k_max * self.lever_m,
+        )
+    }
+
     /// Rayleigh quantile factor: the `noise_quantile` quantile of a stopped receiver's
     /// speed is this times its per-axis σ.
     #[inline]
     pub(super) fn quantile_factor(&self) -> f32 {
         (-2.0 * (1.0 - self.noise_quantile).ln()).sqrt()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Files written before the lever arm load the physical default; a car's lever is
+    /// whole at a crawl, faded between `L/2τ` and `L/τ` (τ = `hold_lag_s`), none for
+    /// a vehicle not known to be a car.
+    #[test]
+    fn the_lever_arm_defaults_and_fades_with_speed() {
+        let mp = ModeParams::default();
+        let mut json = serde_json::to_value(mp).unwrap();
+        json.as_object_mut().unwrap().remove("lever_m");
+        let old: ModeParams = serde_json::from_value(json).unwrap();
+        assert_eq!(old.lever_m, LEVER_M);
+        let mut car = Vehicle::UNKNOWN;
+        car.car = true;
+        let (l, k) = (mp.lever_m, mp.k_max);
+        let whole = l / (2.0 * mp.hold_lag_s);
+        let (s, m) = mp.lever(&car, 0.8 * whole);
+        assert!((s - l / (0.8 * whole)).abs() < 1e-6 && (m - k * l).abs() < 1e-6);
+        let (s, m) = mp.lever(&car, 1.5 * whole);
+        assert!((s - 0.5 * l / (1.5 * whole)).abs() < 1e-6 && (m - 0.5 * k * l).abs() < 1e-6);
+        assert_eq!(mp.lever(&car, 2.0 * whole), (0.0, 0.0));
+        assert_eq!(mp.lever(&Vehicle::UNKNOWN, 1.0), (0.0, 0.0));
     }
 }

@@ -28,21 +28,8 @@ pub fn prepare(
     let run = track_motion(mp, st, vn, ve, acc, dt);
     keep_or_restore_held(st, run);
     let cap2 = cap2();
-    let mut step = Step {
-        course,
-        prior: if st.has_prior { st.psi } else { course },
-        p: cap2,
-        r2: cap2,
-        k: 0.0,
-        rule_reverse: false,
-        moving: false,
-        hold: true,
-        glitch: false,
-        sigma_v: f32::NAN,
-        speed,
-        has_acc: acc.is_finite(),
-        lead_s: 0.0,
-    };
+    let prior = if st.has_prior { st.psi } else { course };
+    let mut step = Step::holding(course, prior, cap2, speed, acc.is_finite());
     if !st.has_prior {
         return step;
     }
@@ -91,6 +78,7 @@ pub fn prepare(
     step.moving = moving;
     step.sigma_v = sig;
     step.lead_s = mp.lead_s(&st.vehicle);
+    (step.lever_s, step.lever_max) = mp.lever(&st.vehicle, speed);
     step
 }
 

@@ -186,6 +186,41 @@ pub struct Step {
     ///
     /// [`ModeParams::lead_s`]: crate::modes::ModeParams
     pub lead_s: f32,
+    /// A car's lever arm over its speed (s; 0 for other vehicles): turning at yaw rate
+    /// ω, the antenna's course leads the heading by `atan(ω·lever_s)` (trails it
+    /// reversing), which the answer takes out; faded with speed where a receiver's
+    /// lag may outweigh it ([`ModeParams::lever_m`]).
+    ///
+    /// [`ModeParams::lever_m`]: crate::modes::ModeParams
+    pub lever_s: f32,
+    /// `ω·lever_s` a car can reach (`k_max·L`, faded alike): a car turns no tighter
+    /// than it steers, so a larger product is capped and, from twice it, read as
+    /// not a car's turn (a robot spinning, a noisy crawl) and not corrected.
+    pub lever_max: f32,
+}
+
+impl Step {
+    /// A step that holds `prior` with the uniform variance `cap2` (what an epoch is
+    /// until the filter finds it moves): no gain, no mode, no lead.
+    pub(crate) fn holding(course: f32, prior: f32, cap2: f32, speed: f32, has_acc: bool) -> Step {
+        Step {
+            course,
+            prior,
+            p: cap2,
+            r2: cap2,
+            k: 0.0,
+            rule_reverse: false,
+            moving: false,
+            hold: true,
+            glitch: false,
+            sigma_v: f32::NAN,
+            speed,
+            has_acc,
+            lead_s: 0.0,
+            lever_s: 0.0,
+            lever_max: 0.0,
+        }
+    }
 }
 
 /// A run of plain motion on a steady course (at least [`RELEASE_SPEED`] and `3·sAcc`,
