@@ -7,16 +7,9 @@
 # Per log: MAE on the second half of atan2, kf, the shipped model and the trained one;
 # the platform the fit chose; the wall time of training on the half and on the whole
 # log. Writes models/reports/ownlog.md (a few minutes on 2 cores).
-set -euo pipefail
-cd "$(dirname "$0")/.."
-cargo build --release -p ghnet-lab --bin ghnet
-# The binary cargo builds, wherever CARGO_TARGET_DIR puts it.
-G="${CARGO_TARGET_DIR:-target}/release/ghnet"
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
+. "$(dirname "$0")/lab-env.sh"
 OUT=models/reports/ownlog.md
 REAL=../shared/data/real/car-nagoya-2024-1hz.csv
-ROBOT="--platform-share 1 --platform-speed 0.3,2.0 --platform-spin 20,60 --platform-spin-share 0.9"
 DAY="--tracks 1 --track-min-s 1200 --track-max-s 1200 --rates-hz 5"
 
 # The `**all**` row's MAE columns (atan2, kf, model) of `ghnet eval` on $2 with model

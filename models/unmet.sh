@@ -6,15 +6,8 @@
 # style also with --platform car and robot. Each table's last column is the longest
 # `Held` run at 1 m/s or faster. Writes models/reports/unmet.md (about a minute on 2 cores); seeds
 # differ from every recipe's.
-set -euo pipefail
-cd "$(dirname "$0")/.."
-cargo build --release -p ghnet-lab --bin ghnet
-# The binary cargo builds, wherever CARGO_TARGET_DIR puts it.
-G="${CARGO_TARGET_DIR:-target}/release/ghnet"
-T=$(mktemp -d)
-trap 'rm -rf "$T"' EXIT
+. "$(dirname "$0")/lab-env.sh"
 OUT=models/reports/unmet.md
-ROBOT="--platform-share 1 --platform-speed 0.3,2.0 --platform-spin 20,60 --platform-spin-share 0.9"
 {
   echo "# ghnet-temporal per vehicle, receiver style and rate"
   echo

@@ -235,21 +235,12 @@ mod tests {
         st.yaw = 20f32.to_radians();
         st.t_still = 0.0;
         let step = |lead_s: f32| Step {
-            course: 0.0,
-            prior: 0.0,
-            p: 0.0,
-            r2: 0.0,
             k: 0.5,
-            rule_reverse: false,
             moving: true,
             hold: false,
-            glitch: false,
             sigma_v: 0.1,
-            speed: 1.5,
-            has_acc: false,
             lead_s,
-            lever_s: 0.0,
-            lever_max: 0.0,
+            ..Step::holding(0.0, 0.0, 0.0, 1.5, false)
         };
         let log_sigma = 5f32.to_radians().ln();
         let map = maps.apply(false, true, false, 5.0);

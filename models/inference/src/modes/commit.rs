@@ -199,21 +199,13 @@ mod tests {
     /// = 0.25.
     fn car_step() -> Step {
         Step {
-            course: 0.0,
-            prior: 0.0,
-            p: 0.0,
-            r2: 0.0,
             k: 0.5,
-            rule_reverse: false,
             moving: true,
             hold: false,
-            glitch: false,
             sigma_v: 0.1,
-            speed: 1.0,
-            has_acc: true,
-            lead_s: 0.0,
             lever_s: 1.25,
             lever_max: 0.25,
+            ..Step::holding(0.0, 0.0, 0.0, 1.0, true)
         }
     }
 

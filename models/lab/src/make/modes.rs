@@ -254,6 +254,31 @@ fn changes(a: &ModeParams, b: &ModeParams) -> Vec<String> {
     out
 }
 
+/// Test material shared with the training tests: a robot whose receiver lags (the
+/// consumer style, 0.5–1.5 s) and the shipped model told that nothing lags.
+#[cfg(test)]
+pub(crate) fn lagging_robot_on_a_no_lag_model() -> (Model, Vec<LogTrack>) {
+    let builtin = Model::builtin("ghnet-temporal").expect("built in");
+    let none = ModeParams {
+        lag_s: 0.0,
+        hold_lag_s: 0.0,
+        ..modes_of(&builtin)
+    };
+    let p = crate::drive::DriveParams {
+        tracks: 4,
+        track_min_s: 150.0,
+        track_max_s: 200.0,
+        receivers: vec![crate::drive::ReceiverKind::Consumer],
+        rates_hz: vec![5],
+        ..crate::drive::DriveParams::default().robots()
+    };
+    let tracks = crate::drive::simulate(&p, 11)
+        .iter()
+        .map(LogTrack::from)
+        .collect();
+    (with_modes(&builtin, none), tracks)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -264,6 +289,20 @@ mod tests {
             .iter()
             .map(LogTrack::from)
             .collect()
+    }
+
+    /// A 20-minute 5 Hz car drive with `receiver`, seeded `seed`, as one log.
+    fn car_day(receiver: crate::drive::ReceiverKind, seed: u64) -> Vec<LogTrack> {
+        let p = crate::drive::DriveParams {
+            tracks: 1,
+            platform_share: 0.0,
+            track_min_s: 1200.0,
+            track_max_s: 1200.0,
+            receivers: vec![receiver],
+            rates_hz: vec![5],
+            ..crate::drive::DriveParams::default()
+        };
+        simulated(&p, seed)
     }
 
     /// The search never ends worse than it started, and a fixed platform is kept.
@@ -287,22 +326,7 @@ mod tests {
     /// model that assumes no lag: the search finds one and says so.
     #[test]
     fn fit_modes_finds_a_receivers_lag() {
-        let builtin = Model::builtin("ghnet-temporal").expect("built in");
-        let none = ModeParams {
-            lag_s: 0.0,
-            hold_lag_s: 0.0,
-            ..modes_of(&builtin)
-        };
-        let model = with_modes(&builtin, none);
-        let p = crate::drive::DriveParams {
-            tracks: 4,
-            track_min_s: 150.0,
-            track_max_s: 200.0,
-            receivers: vec![crate::drive::ReceiverKind::Consumer],
-            rates_hz: vec![5],
-            ..crate::drive::DriveParams::default().robots()
-        };
-        let tracks = simulated(&p, 11);
+        let (model, tracks) = lagging_robot_on_a_no_lag_model();
         let f = fit_modes(&model, &tracks, Some(Platform::Robot));
         assert!(f.modes.lag_s > 0.0, "{f:?}");
         assert!(f.changes.iter().any(|c| c.starts_with("lag_s")), "{f:?}");
@@ -355,16 +379,7 @@ mod tests {
     #[test]
     fn fit_modes_keeps_a_fast_car_off_the_robot_platform() {
         let model = Model::builtin("ghnet-temporal").expect("built in");
-        let p = crate::drive::DriveParams {
-            tracks: 1,
-            platform_share: 0.0,
-            track_min_s: 1200.0,
-            track_max_s: 1200.0,
-            receivers: vec![crate::drive::ReceiverKind::Consumer],
-            rates_hz: vec![5],
-            ..crate::drive::DriveParams::default()
-        };
-        let tracks = simulated(&p, SEED_ROBOT_WINS);
+        let tracks = car_day(crate::drive::ReceiverKind::Consumer, SEED_ROBOT_WINS);
         let robot = ModeParams {
             platform: Platform::Robot,
             ..modes_of(&model)
@@ -385,16 +400,7 @@ mod tests {
     #[test]
     fn fit_modes_does_not_take_one_departures_gain() {
         let model = Model::builtin("ghnet-temporal").expect("built in");
-        let p = crate::drive::DriveParams {
-            tracks: 1,
-            platform_share: 0.0,
-            track_min_s: 1200.0,
-            track_max_s: 1200.0,
-            receivers: vec![crate::drive::ReceiverKind::Ublox],
-            rates_hz: vec![5],
-            ..crate::drive::DriveParams::default()
-        };
-        let day = simulated(&p, 7301);
+        let day = car_day(crate::drive::ReceiverKind::Ublox, 7301);
         let half: Vec<LogTrack> = day.iter().map(|t| t.slice(0..t.len() / 2)).collect();
         let (tr, _) = crate::logs::time_split(&half, 0.2);
         let f = fit_modes(&model, &tr, None);

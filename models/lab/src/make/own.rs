@@ -316,25 +316,7 @@ mod tests {
     /// tripled) does not take the confirmed mode fit (a receiver's lag) down with it.
     #[test]
     fn an_unconfirmed_fine_tune_keeps_the_fitted_mode_filter() {
-        let builtin = Model::builtin("ghnet-temporal").expect("built in");
-        let none = ModeParams {
-            lag_s: 0.0,
-            hold_lag_s: 0.0,
-            ..modes_of(&builtin)
-        };
-        let base = with_modes(&builtin, none);
-        let p = crate::drive::DriveParams {
-            tracks: 4,
-            track_min_s: 150.0,
-            track_max_s: 200.0,
-            receivers: vec![crate::drive::ReceiverKind::Consumer],
-            rates_hz: vec![5],
-            ..crate::drive::DriveParams::default().robots()
-        };
-        let tracks: Vec<LogTrack> = crate::drive::simulate(&p, 11)
-            .iter()
-            .map(LogTrack::from)
-            .collect();
+        let (base, tracks) = crate::make::modes::lagging_robot_on_a_no_lag_model();
         let modes = fit_modes(&base, &tracks, Some(ghnet_inference::Platform::Robot)).modes;
         assert!(modes.lag_s > 0.0);
         let mut params = base.params().clone();
