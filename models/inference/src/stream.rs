@@ -953,12 +953,6 @@ mod tests {
         assert!(above > n / 2, "{above} of {n} above 3·sAcc");
     }
 
-    /// A parked car under poor sky keeps its heading: its receiver's noise at rest is
-    /// three times the sAcc it reports, and glitches of 0.5–5 m/s come every few
-    /// seconds (what the simulator draws under multipath): single spikes in any
-    /// direction, bursts of 2–4 equal ones of 1.5–5 m/s, 60–120° off the car's axis. The
-    /// held heading stays within 2° of where the car stopped, and the car drives off
-    /// again `Ok`.
     /// `Held` answers the held heading: a parked car's epoch whose speed clears its noise
     /// (3σ) but not the motion bar feeds the heading with a small gain, and is answered
     /// by its σ instead. Probes from 0.30 to 0.34 m/s (sAcc 0.1 m/s) a quarter turn off
@@ -1003,6 +997,12 @@ mod tests {
         assert!(held > 0 && fed > 0, "probes held {held}, fed {fed}");
     }
 
+    /// A parked car under poor sky keeps its heading: its receiver's noise at rest is
+    /// three times the sAcc it reports, and glitches of 0.5–5 m/s come every few
+    /// seconds (what the simulator draws under multipath): single spikes in any
+    /// direction, bursts of 2–4 equal ones of 1.5–5 m/s, 60–120° off the car's axis. The
+    /// held heading stays within 2° of where the car stopped, and the car drives off
+    /// again `Ok`.
     #[test]
     fn ghnet_temporal_holds_a_parked_car_through_noise_and_glitch_bursts() {
         use rand_chacha::ChaCha8Rng;

@@ -70,7 +70,7 @@ pub use params::{ModeParams, LEVER_M};
 pub use prepare::prepare;
 pub use release::{
     RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT,
-    RELEASE_NOISE_CAP, RELEASE_NOISE_CAP_LOW_RATE, RELEASE_S, RELEASE_SPEED,
+    RELEASE_NOISE_CAP, RELEASE_NOISE_CAP_LOW_RATE, RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED,
 };
 pub use scatter::{
     extrapolation_share, SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED,
@@ -375,8 +375,9 @@ mod tests {
 
     /// A parked car on a noisy receiver (0.3 m/s per axis at rest) drives off along
     /// its body at 1.1–1.3 m/s, under four times its noise on every other epoch: along
-    /// the sure held heading's axis three times the noise is motion, so the stand ends
-    /// within about a second instead of holding the departure for as long as it dips.
+    /// the sure held heading's axis [`RELEASE_NOISE_K_AXIS`] times the noise is motion,
+    /// so the stand ends within about a second instead of holding the departure for as
+    /// long as it dips.
     #[test]
     fn a_noisy_car_driving_off_along_its_body_is_released() {
         use rand::{Rng, SeedableRng};

@@ -83,7 +83,8 @@ pub struct ModeParams {
     /// little behind the middle of a 2.6–2.8 m wheelbase; the shared real drive's car
     /// reads about 1.1 m). The simulator's cars draw 0–2.5 m, trucks' cabs included,
     /// and on them 1 m and the range's middle differ by a hundredth of a degree
-    /// (models/reports/unmet.md). Files without the field load it.
+    /// (models/reports/unmet.md). Files without the field load it; own-log training fits
+    /// it.
     pub lever_m: f32,
     /// The platform a source has unless its configuration says otherwise
     /// (`ghnet train --platform` records it; `auto` in older files).

@@ -287,9 +287,9 @@ pub(super) fn track_motion(
     let course_sigma = noise.max(acc).max(mp.sigma_floor) / speed.max(f32::MIN_POSITIVE);
     let p = (2.0 * st.log_sigma).exp();
     let on_axis = !(st.has_prior && off_axis_of_held(mp, st, vn, ve, p, course_sigma));
-    // Along a sure held heading's axis, 3σ of noise is the bar: a receiver at rest
-    // rarely points its noise along the body for a second, and a departure along it
-    // changes the answer little if it was noise after all.
+    // Along a sure held heading's axis the bar is a lower multiple of the noise: a
+    // receiver at rest rarely points its noise along the body for a second, and a
+    // departure along it changes the answer little if it was noise after all.
     let along = on_axis && st.has_prior && p < mp.confident_deg.to_radians().powi(2);
     let k = if along { RELEASE_NOISE_K_AXIS } else { 4.0 };
     if speed < floor.max(k * noise) {
