@@ -228,7 +228,6 @@ mod tests {
         (commit(st, &step, &[0.0, 0.0, 0.0], 0.2), c)
     }
 
-    /// A robot stands (at `rest` m/s), drives straight, then turns at 10°/s: how far
     /// `n` epochs of `no_acc` at one speed and course.
     fn run(st: &mut StepState, n: usize, speed: f32, course_deg: f32) {
         for _ in 0..n {
@@ -236,7 +235,8 @@ mod tests {
         }
     }
 
-    /// (degrees) the last answer is ahead of the last course.
+    /// A vehicle on `platform` stands (at `rest` m/s), drives straight, then turns at
+    /// 10°/s: how far (degrees) the last answer is ahead of the last course.
     fn lead_in_turn(platform: Platform, rest: f32) -> f32 {
         let mut st = StepState::fresh(platform);
         run(&mut st, 10, rest, 0.0);
@@ -278,10 +278,10 @@ mod tests {
     /// A car turning at 10°/s at 1.5 m/s (a junction) with its antenna [`LEVER_M`]
     /// ahead of the rear axle: the course leads the heading by `atan(ω·L/v)`, which
     /// the answer takes out as far as the lag's fade leaves it (`ModeParams::lever`;
-    /// the filter's own heading stays on the course). Reversing
-    /// out of a stand through the same turn, the course turned by a half turn trails
-    /// the heading, and the answer leads it. At 3 m/s a receiver's lag may outweigh
-    /// the lever: the answer keeps the course.
+    /// the filter's own heading stays on the course). Reversing out of a stand through
+    /// the same turn, the course turned by a half turn trails the heading, and the
+    /// answer leads it. At 3 m/s a receiver's lag may outweigh the lever: the answer
+    /// keeps the course.
     #[test]
     fn a_cars_answer_takes_its_antennas_lever_arm_out() {
         let mut car = Vehicle::UNKNOWN;

@@ -143,6 +143,14 @@ impl ModeParams {
         }
     }
 
+    /// Whether a heading of variance `p` (rad²) is sure enough to act on
+    /// ([`ModeParams::confident_deg`]): to flip a car's direction, or to hold a
+    /// departure to the axis of its held heading.
+    #[inline]
+    pub(super) fn sure(&self, p: f32) -> bool {
+        p < self.confident_deg.to_radians().powi(2)
+    }
+
     /// A car's lever arm at `speed` (m/s), as [`Step::lever_s`] and [`Step::lever_max`];
     /// zeros for anything else (a platform turns about its antenna's neighbourhood).
     /// The antenna's lead `ω·L/v` fades with speed while a navigation filter's lag

@@ -89,7 +89,7 @@ fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32,
     let pi = std::f32::consts::PI;
     let z = course + if st.reverse { pi } else { 0.0 };
     let d = wrap_rad(z - st.psi);
-    let sure = p < mp.confident_deg.to_radians().powi(2);
+    let sure = mp.sure(p);
     let limit = if st.t_still > 0.0 {
         mp.flip_stop_deg
     } else {

@@ -247,10 +247,9 @@ fn demote(st: &mut StepState) {
 /// Whether a velocity leaves a sure held heading's axis (further than `axis_deg` plus
 /// 2σ of the course): a car cannot leave a stand sideways.
 fn off_axis_of_held(mp: &ModeParams, st: &StepState, vn: f32, ve: f32, p: f32, r: f32) -> bool {
-    let sure = p < mp.confident_deg.to_radians().powi(2);
     let off = wrap_rad(ve.atan2(vn) - st.psi).abs();
     let off_axis = off.min(std::f32::consts::PI - off);
-    sure && off_axis > mp.axis_deg.to_radians() + 2.0 * r
+    mp.sure(p) && off_axis > mp.axis_deg.to_radians() + 2.0 * r
 }
 
 /// The release rule's clock ([`StepState::motion`]): runs while epochs are plain
@@ -290,7 +289,7 @@ pub(super) fn track_motion(
     // Along a sure held heading's axis the bar is a lower multiple of the noise: a
     // receiver at rest rarely points its noise along the body for a second, and a
     // departure along it changes the answer little if it was noise after all.
-    let along = on_axis && st.has_prior && p < mp.confident_deg.to_radians().powi(2);
+    let along = on_axis && st.has_prior && mp.sure(p);
     let k = if along { RELEASE_NOISE_K_AXIS } else { 4.0 };
     if speed < floor.max(k * noise) {
         (st.motion, st.motion_alt, st.motion_skips) = (MotionRun::NONE, MotionRun::NONE, 0);

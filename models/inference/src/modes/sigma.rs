@@ -185,9 +185,7 @@ impl SigmaMaps {
         }
         self.car_turn.apply(mapped_deg.hypot(term))
     }
-}
 
-impl SigmaMaps {
     /// The σ (degrees) of a car moving at [`TURN_SPEED`] or faster whose receiver
     /// reports no speed accuracy, with its lag term:
     /// `hypot(σ, LAG_NONE_S·max(|ω| − LAG_YAW_DEADBAND_DEG, 0))`, ω in °/s.
