@@ -59,6 +59,24 @@ impl LogTrack {
         }
     }
 
+    /// A 1 Hz log heading north at `speeds` (m/s; measured as true, no sAcc), the
+    /// fixture of tests that need time, speed and truth only.
+    #[cfg(test)]
+    pub(crate) fn north_at(speeds: &[f32]) -> LogTrack {
+        let n = speeds.len();
+        LogTrack {
+            key: "0".into(),
+            platform: None,
+            t_s: (0..n).map(|i| i as f64).collect(),
+            v_north: speeds.to_vec(),
+            v_east: vec![0.0; n],
+            speed_acc: vec![f32::NAN; n],
+            truth_deg: vec![0.0; n],
+            true_speed: speeds.to_vec(),
+            receiver_course_deg: vec![f32::NAN; n],
+        }
+    }
+
     /// Epochs `range` as a track of their own (the same key).
     pub fn slice(&self, r: std::ops::Range<usize>) -> LogTrack {
         LogTrack {

@@ -334,29 +334,13 @@ mod tests {
         assert!(f.changes.iter().any(|c| c.starts_with("lag_s")), "{f:?}");
     }
 
-    /// A log of `speeds` (m/s, one a second, heading north), as one track.
-    fn at_speeds(speeds: &[f32]) -> LogTrack {
-        let n = speeds.len();
-        LogTrack {
-            key: "0".into(),
-            platform: None,
-            t_s: (0..n).map(|i| i as f64).collect(),
-            v_north: speeds.to_vec(),
-            v_east: vec![0.0; n],
-            speed_acc: vec![f32::NAN; n],
-            truth_deg: vec![0.0; n],
-            true_speed: vec![f32::NAN; n],
-            receiver_course_deg: vec![f32::NAN; n],
-        }
-    }
-
     /// A 5 Hz car log whose antenna sits `lever` m ahead of the rear axle: ten rounds of
     /// 20 s straight at 10 m/s and 20 s turning at 1 m/s and 0.15 rad/s (left and
     /// right in turn), the course leading the heading by `atan(ω·lever/v)` in the
     /// turns. Noise-free, sAcc 0.1 m/s.
     fn car_with_lever(lever: f32) -> LogTrack {
         let (dt, mut psi) = (0.2f32, 0.0f32);
-        let mut t = at_speeds(&[]);
+        let mut t = LogTrack::north_at(&[]);
         for round in 0..10 {
             let w = if round % 2 == 0 { 0.15 } else { -0.15 };
             for k in 0..200 {
@@ -393,17 +377,17 @@ mod tests {
     fn car_speeds_rule_out_a_robot() {
         let mut car = vec![0.0; 30];
         car.extend(vec![8.0; 15]);
-        let (ps, why) = platform_candidates(&[at_speeds(&car)], None);
+        let (ps, why) = platform_candidates(&[LogTrack::north_at(&car)], None);
         assert!(!ps.contains(&Platform::Robot), "{why}");
         assert!(ps.contains(&Platform::Car) && ps.contains(&Platform::Auto));
         assert!(why.contains("robot not tried"), "{why}");
         let mut robot = vec![1.5; 60];
         robot[30] = 20.0;
         robot[31] = 20.0;
-        assert!(car_speed_s(&[at_speeds(&robot)]) < CAR_SPEED_S);
-        let (ps, _) = platform_candidates(&[at_speeds(&robot)], None);
+        assert!(car_speed_s(&[LogTrack::north_at(&robot)]) < CAR_SPEED_S);
+        let (ps, _) = platform_candidates(&[LogTrack::north_at(&robot)], None);
         assert!(ps.contains(&Platform::Robot));
-        let (ps, _) = platform_candidates(&[at_speeds(&car)], Some(Platform::Robot));
+        let (ps, _) = platform_candidates(&[LogTrack::north_at(&car)], Some(Platform::Robot));
         assert_eq!(ps, vec![Platform::Robot]);
     }
 
@@ -463,7 +447,7 @@ mod tests {
         );
         let mut speeds = vec![0.0; 20];
         speeds.extend(vec![9.0; 40]);
-        let f = fit_modes(&robot, &[at_speeds(&speeds)], None);
+        let f = fit_modes(&robot, &[LogTrack::north_at(&speeds)], None);
         assert_ne!(f.modes.platform, Platform::Robot, "{f:?}");
     }
 }

@@ -127,14 +127,13 @@ fn keep_confirmed(base: Model, trained: Model, modes: ModeParams, va: &[LogTrack
     if new_va.confirms_over(&base_va) {
         return trained;
     }
-    let fitted = with_modes(&base, modes);
-    if modes != modes_of(&base) && Scored::of(&fitted, modes, va).confirms_over(&base_va) {
+    if modes != modes_of(&base) && Scored::of(&base, modes, va).confirms_over(&base_va) {
         eprintln!(
             "the fine-tuned network is not confirmed on the held-out part: writing {} with \
              the fitted mode filter",
             base.name()
         );
-        return fitted;
+        return with_modes(&base, modes);
     }
     if new_va.blocks != base_va.blocks {
         eprintln!(
@@ -337,18 +336,7 @@ mod tests {
             platform: Platform::Robot,
             ..modes_of(&builtin)
         };
-        let n = 60;
-        let car = LogTrack {
-            key: "0".into(),
-            platform: None,
-            t_s: (0..n).map(|i| i as f64).collect(),
-            v_north: vec![9.0; n],
-            v_east: vec![0.0; n],
-            speed_acc: vec![f32::NAN; n],
-            truth_deg: vec![0.0; n],
-            true_speed: vec![f32::NAN; n],
-            receiver_course_deg: vec![f32::NAN; n],
-        };
+        let car = LogTrack::north_at(&[9.0; 60]);
         let m = allowed_platform(
             with_modes(&builtin, robot),
             std::slice::from_ref(&car),

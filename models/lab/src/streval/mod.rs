@@ -660,17 +660,7 @@ mod tests {
 
     /// A 1 Hz track of `n` epochs pointing north at 5 m/s (only time and truth matter).
     fn track(n: usize) -> LogTrack {
-        LogTrack {
-            key: "t".into(),
-            platform: None,
-            t_s: (0..n).map(|i| i as f64).collect(),
-            v_north: vec![5.0; n],
-            v_east: vec![0.0; n],
-            speed_acc: vec![f32::NAN; n],
-            truth_deg: vec![0.0; n],
-            true_speed: vec![5.0; n],
-            receiver_course_deg: vec![f32::NAN; n],
-        }
+        LogTrack::north_at(&vec![5.0; n])
     }
 
     /// A held stop counts once however long it is, runs split by a track boundary are
