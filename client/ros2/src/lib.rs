@@ -12,7 +12,7 @@
 //! - [`msg`] — the ROS messages as serde structs in `.msg` field order (CDR-ready).
 //! - [`relay`] — the rules without I/O: heading → Imu (REP-103 yaw, covariances, the
 //!   status rules, `Held` fused once per stop), a source's `DiagnosticStatus`.
-//! - [`output`] — [`Output`](output::Output), what a middleware must do; [`dds`]
+//! - [`output`] — [`output::Output`], what a middleware must do; [`dds`]
 //!   (ros2-client on RustDDS) and [`zenoh_out`] (rmw_zenoh's keys, payload,
 //!   attachment and liveliness tokens) implement it.
 //! - `bridge` — the loop: an iceoryx2 `WaitSet` over the heading services, discovery

@@ -2,10 +2,10 @@
 //!
 //! Binaries are built for baseline x86-64 (SSE2), so the wide paths are compiled with
 //! `#[target_feature]` and chosen at run time ([`Kernel::detect`], or by name with
-//! [`KERNEL_ENV`]). The AVX paths run the same generic code ([`Simd`] is the only thing
-//! that differs); the portable path runs GELU on that code with plain-Rust lanes and the
-//! network's products on faer ([`crate::net`]). They agree to within f32 rounding: the
-//! AVX paths fuse multiply-adds, and each sums in its own order.
+//! [`KERNEL_ENV`]). The AVX paths run the same generic code (the private `Simd` lane
+//! trait is the only thing that differs); the portable path runs GELU on that code with
+//! plain-Rust lanes and the network's products on faer ([`crate::net`]). They agree to
+//! within f32 rounding: the AVX paths fuse multiply-adds, and each sums in its own order.
 //!
 //! Also here: 64-byte aligned buffers for weights and activations, and the FMA loop that
 //! measures this core's peak throughput, so benches can state their GFLOP/s as a share of
@@ -429,7 +429,7 @@ pub(crate) use on_kernel;
 /// the FMA ports (2) on current x86 cores, and few enough to stay in registers.
 const PEAK_CHAINS: usize = 12;
 
-/// Run `iters` rounds of [`PEAK_CHAINS`] independent vector FMAs on `kernel` and return a
+/// Run `iters` rounds of `PEAK_CHAINS` independent vector FMAs on `kernel` and return a
 /// value that depends on all of them (so the loop cannot be optimised away).
 ///
 /// This is the reference for "share of peak": a loop that does nothing but fused

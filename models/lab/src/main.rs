@@ -53,7 +53,7 @@ enum Cmd {
         /// degrees, the paper's own protocol (its best result came from 0–90°).
         #[arg(long, requires = "data", value_parser = parse_range)]
         heading_range: Option<(f32, f32)>,
-        /// Output safetensors file (default: models/inference/weights/<recipe>.safetensors).
+        /// Output safetensors file (default: `models/inference/weights/<recipe>.safetensors`).
         #[arg(long, required_unless_present = "recipe")]
         output: Option<PathBuf>,
         /// Override the recipe's seed for initialisation, shuffling and dropout.

@@ -1,4 +1,4 @@
-//! Processes of the kit: the handle every spawned process lives in ([`Process`]:
+//! Processes of the kit: the handle every spawned process lives in (`Process`:
 //! dies with the test, killed and reaped on drop), the child publisher and
 //! subscriber (the kit's bins) that tests `kill -9`, and the Zenoh router of the fleet
 //! tests ([`ChildRouter`]).

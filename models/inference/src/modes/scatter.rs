@@ -15,7 +15,7 @@ pub const SCATTER_SPEED: f32 = 3.0;
 /// its prediction is smooth beside one course's noise. Over a longer interval (a 1 Hz
 /// receiver) the filter follows each course and its prediction, the previous heading
 /// turned at the yaw rate, extrapolates the last two courses: their noise is in the
-/// residual too, and [`update_scatter`] takes it out ([`extrapolation_share`]).
+/// residual too, and the scatter update takes it out ([`extrapolation_share`]).
 pub const SCATTER_SMOOTH_DT: f32 = 0.55;
 
 /// Longest epoch interval (s) whose course feeds [`Vehicle::scatter`]: a 1 Hz
