@@ -129,6 +129,17 @@ enum Cmd {
         #[arg(long)]
         output: PathBuf,
     },
+    /// Recompute the held-out metrics a temporal model stores (its recipe's test
+    /// tracks, against the shipped kf) and write the model with them, weights
+    /// unchanged: after a rule change moves what the shipped network streams.
+    Restamp {
+        /// Built-in model name or safetensors path.
+        #[arg(long, default_value = DEFAULT_MODEL)]
+        model: String,
+        /// Output file (the shipped one: `models/inference/weights/<name>.safetensors`).
+        #[arg(long)]
+        output: PathBuf,
+    },
     /// Write a model (built-in or file) to a safetensors file.
     Export {
         /// Built-in model name or safetensors path.
@@ -303,6 +314,7 @@ fn run(cli: Cli) -> Result<()> {
             platform,
         } => infer(&load_on(&model, platform)?, &input, &output, format),
         Cmd::Calibrate { model, output } => make::temporal::calibrate_recipe_model(&model, &output),
+        Cmd::Restamp { model, output } => make::temporal::restamp_recipe_model(&model, &output),
         Cmd::Export { model, output } => {
             let m = load(&model)?;
             std::fs::write(&output, m.to_safetensors())

@@ -211,7 +211,6 @@ fn shipped_meta(
     cfg: &TemporalConfig,
     seconds: f64,
 ) -> ModelMeta {
-    let all = tables.last().expect("an 'all' table");
     let mut meta = model.meta().clone();
     meta.training = serde_json::json!({
         "config": cfg,
@@ -220,7 +219,17 @@ fn shipped_meta(
         "best_val_mae_deg": trained.best_val_mae_deg,
         "seconds": seconds,
     });
-    meta.metrics = serde_json::json!({
+    meta.metrics = held_out_metrics(model, tables);
+    meta
+}
+
+/// The held-out metrics a temporal model stores (`models/lab/tests/shipped.rs` checks
+/// them): test epochs and mean absolute error overall and after the first motion, of
+/// the model, `kf` and atan2, from the tables streamed over its recipe's test tracks
+/// ([`held_out_tables`]).
+pub fn held_out_metrics(model: &Model, tables: &[streval::Table]) -> serde_json::Value {
+    let all = tables.last().expect("an 'all' table");
+    serde_json::json!({
         "test_epochs": all.rows.iter().find(|r| r.label == "**all**").map(|r| r.count),
         "mae_deg": all.overall(model.name()),
         "kf_mae_deg": all.overall("kf"),
@@ -230,8 +239,40 @@ fn shipped_meta(
             "kf_mae_deg": all.after_motion("kf"),
             "atan2_mae_deg": all.after_motion(streval::ATAN2),
         },
-    });
-    meta
+    })
+}
+
+/// The tables of a temporal model streamed over its recipe's test tracks against the
+/// shipped `kf`: what [`held_out_metrics`] reads.
+pub fn held_out_tables(model: &Arc<Model>) -> Result<Vec<streval::Table>> {
+    let r: TemporalRecipe = serde_json::from_value(model.meta().training_data.clone())
+        .context("the model's metadata names no temporal recipe")?;
+    let kf = Arc::new(Model::from_name_or_path("kf")?);
+    let [_, _, test] = r.tracks();
+    Ok(streval::tables(
+        model,
+        &kf,
+        None,
+        &test,
+        "held-out simulated tracks",
+    ))
+}
+
+/// `ghnet restamp`: recompute the held-out metrics a temporal model stores, streamed
+/// over its recipe's test tracks against the shipped `kf`, and write the model with
+/// them, weights unchanged. A change to the mode filter's rules moves what the shipped
+/// network streams without training it again; this keeps the stored numbers (and the
+/// test that checks them) in step.
+pub fn restamp_recipe_model(model: &str, output: &Path) -> Result<()> {
+    let model = Arc::new(Model::from_name_or_path(model)?);
+    let tables = held_out_tables(&model)?;
+    let mut meta = model.meta().clone();
+    meta.metrics = held_out_metrics(&model, &tables);
+    let out = Model::new(model.params().clone(), meta);
+    std::fs::write(output, out.to_safetensors())
+        .with_context(|| format!("writing {}", output.display()))?;
+    eprintln!("wrote {} with {}", output.display(), out.meta().metrics);
+    Ok(())
 }
 
 /// `cfg` with the JSON object `json` merged into it (nested objects key by key).
