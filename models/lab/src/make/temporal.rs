@@ -8,7 +8,7 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 
-use ghnet_inference::weights::ModelMeta;
+use ghnet_inference::weights::{ModelKind, ModelMeta};
 use ghnet_inference::Model;
 
 use super::kf::tuned_kf;
@@ -265,6 +265,12 @@ pub fn held_out_tables(model: &Arc<Model>) -> Result<Vec<streval::Table>> {
 /// test that checks them) in step.
 pub fn restamp_recipe_model(model: &str, output: &Path) -> Result<()> {
     let model = Arc::new(Model::from_name_or_path(model)?);
+    if !matches!(model.meta().kind, ModelKind::Temporal { .. }) {
+        anyhow::bail!(
+            "{} is not a temporal model: only those store these metrics",
+            model.name()
+        );
+    }
     let tables = held_out_tables(&model)?;
     let mut meta = model.meta().clone();
     meta.metrics = held_out_metrics(&model, &tables);
