@@ -32,7 +32,7 @@ pub fn eval_stream(
     let (tracks, what) = match data {
         Some(p) => (ghnet_lab::logs::read_truth_csv(p)?, p.display().to_string()),
         None => {
-            let r: TemporalRecipe = serde_json::from_value(model.meta().training_data.clone())
+            let r = TemporalRecipe::of(model)
                 .context("model metadata does not name the drives it was trained on; use --data")?;
             (
                 r.tracks()[2].clone(),

@@ -32,6 +32,13 @@ pub struct TemporalRecipe {
 }
 
 impl TemporalRecipe {
+    /// The recipe a temporal model was trained from, as its metadata names it
+    /// (`training_data`): its tracks regenerate the model's held-out split.
+    pub fn of(model: &Model) -> Result<Self> {
+        serde_json::from_value(model.meta().training_data.clone())
+            .context("the model's metadata names no temporal recipe")
+    }
+
     /// The shipped recipe.
     pub fn shipped() -> Self {
         Self {
@@ -191,9 +198,7 @@ pub fn train_temporal_recipe(
 /// last, without training again).
 pub fn calibrate_recipe_model(model: &str, output: &Path) -> Result<()> {
     let m = Model::from_name_or_path(model)?;
-    let r: TemporalRecipe = serde_json::from_value(m.meta().training_data.clone())
-        .context("the model's metadata names no temporal recipe")?;
-    let [tr, va, _] = r.tracks();
+    let [tr, va, _] = TemporalRecipe::of(&m)?.tracks();
     let both: Vec<_> = tr.into_iter().chain(va).collect();
     let out = crate::temporal::calibrate(m.params().clone(), m.meta().clone(), &both);
     std::fs::write(output, out.to_safetensors())
@@ -245,10 +250,8 @@ pub fn held_out_metrics(model: &Model, tables: &[streval::Table]) -> serde_json:
 /// The tables of a temporal model streamed over its recipe's test tracks against the
 /// shipped `kf`: what [`held_out_metrics`] reads.
 pub fn held_out_tables(model: &Arc<Model>) -> Result<Vec<streval::Table>> {
-    let r: TemporalRecipe = serde_json::from_value(model.meta().training_data.clone())
-        .context("the model's metadata names no temporal recipe")?;
     let kf = Arc::new(Model::from_name_or_path("kf")?);
-    let [_, _, test] = r.tracks();
+    let [_, _, test] = TemporalRecipe::of(model)?.tracks();
     Ok(streval::tables(
         model,
         &kf,
