@@ -69,7 +69,7 @@ pub(crate) use noise::random_walk_variance;
 pub use params::{ModeParams, LEVER_M};
 pub use prepare::prepare;
 pub use release::{
-    RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT,
+    BRAKE_MAX, RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT,
     RELEASE_NOISE_CAP, RELEASE_NOISE_CAP_LOW_RATE, RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED,
 };
 pub use scatter::{
@@ -336,7 +336,7 @@ mod tests {
     /// A car slowing to a stop (a lagging receiver's tail at walking pace) reads a spike
     /// of 1.8 m/s a quarter turn off: from 0.5 m/s no car gets there in 0.2 s, so the
     /// spike does not turn its heading, at any speed under `gate_speed`. Coming down
-    /// from speed is not gated: braking is harder than `a_max`.
+    /// from speed is gated only by [`BRAKE_MAX`]: braking is harder than `a_max`.
     #[test]
     fn a_spike_out_of_slow_motion_does_not_turn_a_car() {
         let mut st = StepState::fresh(Platform::Car);
@@ -354,6 +354,24 @@ mod tests {
         let (d, _) = no_acc(&mut st, 0.4, 88.0);
         let off = wrap_rad(d.psi - 86f32.to_radians()).to_degrees();
         assert!(off.abs() < 3.0, "after the spike: {off}° {st:?}");
+    }
+
+    /// A car turning at 4.5 m/s whose receiver prints one 0.0 m/s epoch (a bad fix)
+    /// did not stop: no car brakes that hard ([`BRAKE_MAX`]). Taken as a stop, the
+    /// epoch started a stand that held the heading for a second of the turn.
+    #[test]
+    fn a_zero_epoch_at_speed_is_no_stop() {
+        let mut st = StepState::fresh(Platform::Car);
+        run(&mut st, 30, 4.5, 60.0);
+        no_acc(&mut st, 0.0, 60.0);
+        assert_eq!(st.skips, 1, "the zero epoch is a glitch: {st:?}");
+        assert_eq!(st.t_still, 0.0, "no stand began: {st:?}");
+        for k in 1..=10 {
+            let course = 60.0 + 5.0 * k as f32;
+            let (d, c) = no_acc(&mut st, 4.5, course);
+            let off = wrap_rad(d.psi - c).to_degrees();
+            assert!(off.abs() < 5.0, "epoch {k} of the turn: {off}° off: {st:?}");
+        }
     }
 
     /// A course that zig-zags ±15° about a straight line (a noisy receiver) reads as

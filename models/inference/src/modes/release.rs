@@ -63,6 +63,13 @@ pub const RELEASE_EPOCHS_OFF_AXIS: u16 = 3;
 /// course than this is motion, not noise or a glitch burst's scatter.
 pub const RELEASE_COURSE_DEG: f32 = 30.0;
 
+/// Hardest braking (m/s²) a car's velocity can show, about 1 g: a moving car whose
+/// velocity drops by more than this per second (plus 3σ of the noise) did not stop,
+/// its receiver glitched. NMEA receivers print 0.0 m/s on a bad fix; taken as a stop,
+/// one such epoch at 4–5 m/s started a stand that the gate then kept for over a second
+/// of driving (a standing car leaves rest only as fast as `a_max` allows).
+pub const BRAKE_MAX: f32 = 10.0;
+
 /// What an epoch did to the run of plain motion ([`StepState::motion`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum RunStep {
@@ -160,8 +167,10 @@ pub(super) fn keep_or_restore_held(st: &mut StepState, step: RunStep) {
 /// At speed that is `a_max·dt` (at most `max_skips` epochs in a row), and so it is for a
 /// car whose last used velocity was slow (under `gate_speed`), whatever its speed now:
 /// a spike out of a slow creep or a stop's lagging tail turned held headings that the
-/// car then had to leave along. A car is not gated coming down from speed below
-/// `gate_speed` (braking reaches 1 g, beyond `a_max`). A standing car is
+/// car then had to leave along. A car coming down from speed below `gate_speed` is
+/// gated only by [`BRAKE_MAX`] (braking reaches 1 g, beyond `a_max`), also at most
+/// `max_skips` epochs in a row: a drop faster than that is a glitch, not a stop (a
+/// stop it started would hold the heading while the car drives on). A standing car is
 /// stricter, because a held heading is only as good as the epochs it ignores: a burst
 /// of glitches at a stop used to turn it once `max_skips` ran out, and a single spike of
 /// 1–3 m/s at 1 Hz is within `a_max·dt`. So a standing car leaves rest only on a
@@ -192,8 +201,17 @@ pub(super) fn glitch(
     let gated = speed > mp.gate_speed || standing || from_slow;
     // A car cannot change its velocity by more than `a_max` per second (plus the noise).
     let prev = st.prev_v;
-    let unreachable = |secs: f32| (vn - prev[0]).hypot(ve - prev[1]) > mp.a_max * secs + 3.0 * sig;
-    let reject = if !(st.prev_v[0].is_finite() && gated && dt > 0.0) {
+    let change = (vn - prev[0]).hypot(ve - prev[1]);
+    let unreachable = |secs: f32| change > mp.a_max * secs + 3.0 * sig;
+    // Below `gate_speed` a moving car is gated only by how hard it can brake.
+    let braked_too_hard = st.vehicle.car
+        && !standing
+        && prev[0].is_finite()
+        && speed < prev[0].hypot(prev[1])
+        && change > BRAKE_MAX * dt + 3.0 * sig;
+    let reject = if braked_too_hard && dt > 0.0 {
+        st.skips < mp.max_skips
+    } else if !(st.prev_v[0].is_finite() && gated && dt > 0.0) {
         false
     } else if standing && st.released() {
         // A second of plain motion on a steady course ends any stand: a car that did
