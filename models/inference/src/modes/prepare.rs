@@ -46,6 +46,9 @@ pub fn prepare(
     let p_still = still_variance(mp, st, dt);
     // The gate first: a glitch must neither change the direction nor count as driving.
     step.glitch = glitch(mp, st, vn, ve, speed, sig, dt, moving, p_still, r);
+    if !step.glitch {
+        st.driving = st.released();
+    }
     // A car whose speed is within its receiver's noise (under 3σ: 1% of a standing
     // receiver's epochs, 37% under the `√2σ` that `measurement` uses) is taken to stand.
     let car_at_rest = st.vehicle.car && !moving && speed < 3.0 * sig;

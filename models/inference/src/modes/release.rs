@@ -169,8 +169,11 @@ pub(super) fn keep_or_restore_held(st: &mut StepState, step: RunStep) {
 /// a spike out of a slow creep or a stop's lagging tail turned held headings that the
 /// car then had to leave along. A car coming down from speed below `gate_speed` is
 /// gated only by [`BRAKE_MAX`] (braking reaches 1 g, beyond `a_max`), also at most
-/// `max_skips` epochs in a row: a drop faster than that is a glitch, not a stop (a
-/// stop it started would hold the heading while the car drives on). A standing car is
+/// `max_skips` epochs in a row, and only when its last used epoch was driving
+/// ([`StepState::driving`]): a drop faster than that is a glitch, not a stop (a stop it
+/// started would hold the heading while the car drives on); but right after a glitch
+/// burst ended a stand, the last used velocity is the burst's, and the drop back to
+/// rest is real. A standing car is
 /// stricter, because a held heading is only as good as the epochs it ignores: a burst
 /// of glitches at a stop used to turn it once `max_skips` ran out, and a single spike of
 /// 1–3 m/s at 1 Hz is within `a_max·dt`. So a standing car leaves rest only on a
@@ -203,11 +206,12 @@ pub(super) fn glitch(
     let prev = st.prev_v;
     let change = (vn - prev[0]).hypot(ve - prev[1]);
     let unreachable = |secs: f32| change > mp.a_max * secs + 3.0 * sig;
-    // Below `gate_speed` a moving car is gated only by how hard it can brake.
+    // Below `gate_speed` a driving car is gated only by how hard it can brake.
     let braked_too_hard = st.vehicle.car
         && !standing
         && prev[0].is_finite()
         && speed < prev[0].hypot(prev[1])
+        && st.driving
         && change > BRAKE_MAX * dt + 3.0 * sig;
     let reject = if braked_too_hard && dt > 0.0 {
         st.skips < mp.max_skips

@@ -90,6 +90,10 @@ pub struct StepState {
     pub motion_skips: u8,
     /// What a car's stand held while a short run off its axis has released it.
     pub before_release: Option<HeldHeading>,
+    /// Whether the last used epoch was driving (in a second of steady motion,
+    /// [`StepState::released`]): the glitch gate's braking bound applies only then,
+    /// when its reference velocity was driven, not a glitch burst's.
+    pub driving: bool,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -123,6 +127,7 @@ impl StepState {
         motion_alt: MotionRun::NONE,
         motion_skips: 0,
         before_release: None,
+        driving: false,
         vehicle: Vehicle::UNKNOWN,
     };
 
