@@ -197,25 +197,26 @@ pub(super) fn glitch(
     r: f32,
 ) -> bool {
     let standing = st.vehicle.car && st.t_still > 0.0;
+    let prev = st.prev_v;
+    let prev_speed = prev[0].hypot(prev[1]);
     // A car near rest cannot jump either: from a slow velocity it gains at most
-    // `a_max` per second, whatever its speed after. Only coming down from speed is a
-    // car not gated below `gate_speed`: it brakes harder than `a_max`.
-    let from_slow = st.vehicle.car && st.prev_v[0].hypot(st.prev_v[1]) <= mp.gate_speed;
+    // `a_max` per second, whatever its speed after. Coming down from speed, a car
+    // brakes harder than `a_max`: below `gate_speed` only `BRAKE_MAX` bounds it.
+    let from_slow = st.vehicle.car && prev_speed <= mp.gate_speed;
     let gated = speed > mp.gate_speed || standing || from_slow;
     // A car cannot change its velocity by more than `a_max` per second (plus the noise).
-    let prev = st.prev_v;
     let change = (vn - prev[0]).hypot(ve - prev[1]);
     let unreachable = |secs: f32| change > mp.a_max * secs + 3.0 * sig;
-    // Below `gate_speed` a driving car is gated only by how hard it can brake.
     let braked_too_hard = st.vehicle.car
         && !standing
-        && prev[0].is_finite()
-        && speed < prev[0].hypot(prev[1])
         && st.driving
+        && speed < prev_speed
         && change > BRAKE_MAX * dt + 3.0 * sig;
-    let reject = if braked_too_hard && dt > 0.0 {
+    let reject = if !(prev[0].is_finite() && dt > 0.0) {
+        false
+    } else if braked_too_hard {
         st.skips < mp.max_skips
-    } else if !(st.prev_v[0].is_finite() && gated && dt > 0.0) {
+    } else if !gated {
         false
     } else if standing && st.released() {
         // A second of plain motion on a steady course ends any stand: a car that did
