@@ -71,6 +71,7 @@ pub use prepare::prepare;
 pub use release::{
     BRAKE_MAX, RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT,
     RELEASE_NOISE_CAP, RELEASE_NOISE_CAP_LOW_RATE, RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED,
+    UNSURE_HELD_DEG,
 };
 pub use scatter::{
     extrapolation_share, SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED,
@@ -391,33 +392,50 @@ mod tests {
         }
     }
 
-    /// A parked car on a noisy receiver (0.3 m/s per axis at rest) drives off along
-    /// its body at 1.1–1.3 m/s, under four times its noise on every other epoch: along
-    /// the sure held heading's axis [`RELEASE_NOISE_K_AXIS`] times the noise is motion,
-    /// so the stand ends within about a second instead of holding the departure for as
-    /// long as it dips.
-    #[test]
-    fn a_noisy_car_driving_off_along_its_body_is_released() {
+    /// A car parked after driving at 40°, the network's `y₂` at its last moving epoch
+    /// `held_y2`, on a noisy receiver (0.3 m/s per axis at rest, 300 epochs of it),
+    /// then driving off on `course` (degrees, jittered) at 1.1–1.3 m/s, under four
+    /// times its noise on every other epoch: the departure epoch the stand is released
+    /// on, if within 15.
+    fn noisy_departure(seed: u64, held_y2: f32, course: f32) -> Option<usize> {
         use rand::{Rng, SeedableRng};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let mut st = StepState::fresh(Platform::Car);
         run(&mut st, 30, 10.0, 40.0);
+        st.held_y2 = held_y2;
         run(&mut st, 10, 0.0, 40.0);
         for _ in 0..300 {
             let (n, e): (f32, f32) = (rng.random_range(-0.52..0.52), rng.random_range(-0.52..0.52));
             no_acc(&mut st, n.hypot(e), e.atan2(n).to_degrees());
         }
         assert!(!st.released(), "released at rest: {st:?}");
-        let mut released_at = None;
-        for k in 0..15 {
+        (0..15).find(|&k| {
             let speed = if k % 2 == 0 { 1.3 } else { 1.1 };
-            no_acc(&mut st, speed, 40.0 + if k % 3 == 0 { 4.0 } else { -3.0 });
-            if st.released() {
-                released_at = Some(k);
-                break;
-            }
-        }
-        let k = released_at.expect("a departure along the body was never released");
-        assert!(k <= 6, "released on departure epoch {k}: {st:?}");
+            no_acc(&mut st, speed, course + if k % 3 == 0 { 4.0 } else { -3.0 });
+            st.released()
+        })
+    }
+
+    /// A parked car on a noisy receiver drives off along its body ([`noisy_departure`]):
+    /// along the sure held heading's axis [`RELEASE_NOISE_K_AXIS`] times the noise is
+    /// motion, so the stand ends within about a second instead of holding the
+    /// departure for as long as it dips.
+    #[test]
+    fn a_noisy_car_driving_off_along_its_body_is_released() {
+        let k =
+            noisy_departure(3, 0.0, 40.0).expect("a departure along the body was never released");
+        assert!(k <= 6, "released on departure epoch {k}");
+    }
+
+    /// The same, but the network doubted the stop (its `y₂` puts the held σ past
+    /// [`UNSURE_HELD_DEG`]) and the car drives off 60° from the held heading: an unsure
+    /// stand guards nothing, so [`RELEASE_NOISE_K_AXIS`] times the noise is motion in
+    /// any direction and the stand ends within about a second; at four times the noise,
+    /// the dips to 1.1 m/s held it for as long as the departure lasted.
+    #[test]
+    fn a_noisy_car_leaving_an_unsure_stand_is_released() {
+        let k = noisy_departure(5, 4.0, 100.0)
+            .expect("a departure from an unsure stand was never released");
+        assert!(k <= 6, "released on departure epoch {k}");
     }
 }

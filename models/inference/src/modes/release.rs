@@ -36,11 +36,23 @@ pub const RELEASE_NOISE_CAP: f32 = 0.3;
 /// standing cars (the stopped rows of `reports/unmet.md`).
 pub const RELEASE_NOISE_CAP_LOW_RATE: f32 = 0.25;
 
-/// Times the capped noise σ that is plain motion along a sure held heading's axis
-/// (elsewhere 4): a departure along the body is what a car does, and a noisy receiver
-/// (σ near [`RELEASE_NOISE_CAP`]) driving off at 1–1.5 m/s dips under 4σ often enough
-/// to keep its stand for seconds.
+/// Times the capped noise σ that is plain motion along a sure held heading's axis, and
+/// anywhere out of an unsure stand ([`UNSURE_HELD_DEG`]); elsewhere 4: a departure
+/// along the body is what a car does, and a noisy receiver (σ near
+/// [`RELEASE_NOISE_CAP`]) driving off at 1–1.5 m/s dips under 4σ often enough to keep
+/// its stand for seconds.
 pub const RELEASE_NOISE_K_AXIS: f32 = 3.5;
+
+/// A standing car's held heading is unsure from this σ (degrees) on: the filter's σ
+/// with the network's correction `y₂` at the stop (the raw σ the standing σ map
+/// reads), twice the default `confident_deg` under which a heading is sure. Such a
+/// stand (after a fix gap, or a stop the network doubted) keeps little worth guarding,
+/// so a departure from it needs only [`RELEASE_NOISE_K_AXIS`] times the noise, in any
+/// direction. At 4σ, noisy receivers' departures at 1–1.5 m/s on simulated 5 Hz NMEA
+/// and RTKLIB cars dipped under the bar often enough to hold such stands for over 2 s,
+/// tens of degrees off. The release clock stays [`RELEASE_S`]: a shorter one let
+/// glitch bursts at 5 Hz release these stands.
+pub const UNSURE_HELD_DEG: f32 = 60.0;
 
 /// Shortest epoch interval (s) at which [`RELEASE_NOISE_CAP_LOW_RATE`] applies.
 pub const RELEASE_LOW_RATE_DT: f32 = 0.5;
@@ -275,6 +287,13 @@ fn off_axis_of_held(mp: &ModeParams, st: &StepState, vn: f32, ve: f32, p: f32, r
     mp.sure(p) && off_axis > mp.axis_deg.to_radians() + 2.0 * r
 }
 
+/// Whether `st` is a standing car whose held heading is unsure ([`UNSURE_HELD_DEG`]).
+fn unsure_stand(st: &StepState) -> bool {
+    let held =
+        (st.log_sigma + st.held_y2).clamp(crate::head::LOG_SIGMA_MIN, crate::head::LOG_SIGMA_MAX);
+    st.has_prior && st.vehicle.car && st.t_still > 0.0 && held.exp() >= UNSURE_HELD_DEG.to_radians()
+}
+
 /// The release rule's clock ([`StepState::motion`]): runs while epochs are plain
 /// motion (at least [`RELEASE_SPEED`] and `3·sAcc`) on a steady course.
 ///
@@ -311,9 +330,14 @@ pub(super) fn track_motion(
     let on_axis = !(st.has_prior && off_axis_of_held(mp, st, vn, ve, p, course_sigma));
     // Along a sure held heading's axis the bar is a lower multiple of the noise: a
     // receiver at rest rarely points its noise along the body for a second, and a
-    // departure along it changes the answer little if it was noise after all.
+    // departure along it changes the answer little if it was noise after all. Out of
+    // an unsure stand it changes little either way.
     let along = on_axis && st.has_prior && mp.sure(p);
-    let k = if along { RELEASE_NOISE_K_AXIS } else { 4.0 };
+    let k = if along || unsure_stand(st) {
+        RELEASE_NOISE_K_AXIS
+    } else {
+        4.0
+    };
     if speed < floor.max(k * noise) {
         (st.motion, st.motion_alt, st.motion_skips) = (MotionRun::NONE, MotionRun::NONE, 0);
         return RunStep::New;
