@@ -158,8 +158,7 @@ pub(super) fn keep_or_restore_held(st: &mut StepState, step: RunStep) {
         }
     }
     if st.before_release.is_none()
-        && st.vehicle.car
-        && st.t_still > 0.0
+        && st.car_stands()
         && st.has_prior
         && st.released()
         && !st.motion.on_axis
@@ -208,7 +207,7 @@ pub(super) fn glitch(
     p: f32,
     r: f32,
 ) -> bool {
-    let standing = st.vehicle.car && st.t_still > 0.0;
+    let standing = st.car_stands();
     let prev = st.prev_v;
     let prev_speed = prev[0].hypot(prev[1]);
     // A car near rest cannot jump either: from a slow velocity it gains at most
@@ -291,7 +290,7 @@ fn off_axis_of_held(mp: &ModeParams, st: &StepState, vn: f32, ve: f32, p: f32, r
 fn unsure_stand(st: &StepState) -> bool {
     let held =
         (st.log_sigma + st.held_y2).clamp(crate::head::LOG_SIGMA_MIN, crate::head::LOG_SIGMA_MAX);
-    st.has_prior && st.vehicle.car && st.t_still > 0.0 && held.exp() >= UNSURE_HELD_DEG.to_radians()
+    st.has_prior && st.car_stands() && held.exp() >= UNSURE_HELD_DEG.to_radians()
 }
 
 /// The release rule's clock ([`StepState::motion`]): runs while epochs are plain

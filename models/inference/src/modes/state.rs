@@ -148,6 +148,13 @@ impl StepState {
         self.t_still == 0.0
     }
 
+    /// Whether this is a car standing (time has passed since its last moving epoch):
+    /// the stand the glitch gate, the release rule and an off-axis release act on.
+    #[inline]
+    pub fn car_stands(&self) -> bool {
+        self.vehicle.car && self.t_still > 0.0
+    }
+
     /// An empty history that keeps what it knew about the vehicle (after a fix gap).
     pub fn after_gap(&self) -> StepState {
         StepState {
