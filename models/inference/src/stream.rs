@@ -36,7 +36,12 @@
 //! the temporal model, its own decision that the epoch did not move (its course was
 //! not used, so the heading is the held one): a noisy receiver's speed at rest often
 //! passes `3·sAcc`, and those epochs were answered `Ok` with the held heading, which a
-//! filter would then fuse again and again as if each were news.
+//! filter would then fuse again and again as if each were news. The temporal model's
+//! word also overrules the speed the other way: an epoch under `3·sAcc` whose course
+//! moved the heading is answered by its σ (`Ok` or `LowSpeed`), not `Held`. A platform
+//! on a noisy receiver (sAcc 0.35 m/s at 1 Hz puts the bar at 1.05 m/s) follows its
+//! course while it drives slower than that, and was answered `Held` for seconds of
+//! driving with a heading that was not held.
 
 use std::sync::Arc;
 
@@ -416,7 +421,7 @@ impl StreamPredictor {
                 return self.end(h, &pending);
             }
         };
-        self.finish(psi, std_deg, had_prior, false, [vn, ve, speed, acc])
+        self.finish(psi, std_deg, had_prior, false, false, [vn, ve, speed, acc])
     }
 
     /// Opens epoch `e` on `h` if it can be answered: `[v_north, v_east, speed, sAcc]`
@@ -541,8 +546,12 @@ impl StreamPredictor {
         // Standing is the filter's word that the heading is the held one: an epoch
         // under the motion bar whose course still fed the heading (a speed above the
         // noise, with the small gain its σ gives) moved it, and is no held answer.
+        // The same word decides an epoch under the speed bar (`3·sAcc`): a course that
+        // moved a held heading (a platform's, whose stand holds nothing, follows its
+        // course at a noisy receiver's slow speeds) is an answer of its own, not a hold.
         let standing = !h.state.moving_now() && d.gain <= 0.0;
-        self.finish(d.psi, std, pending.had_prior, standing, pending.epoch)
+        let fed = pending.had_prior && d.gain > 0.0;
+        self.finish(d.psi, std, pending.had_prior, standing, fed, pending.epoch)
     }
 
     /// The filter step from outputs `self.y`: heading (radians) and reported σ
@@ -569,15 +578,16 @@ impl StreamPredictor {
     }
 
     /// Heading in [0, 360), σ, status: `Held` for a stopped vehicle with a heading from
-    /// earlier epochs (`had_prior`), stopped by its speed or, when the model says so,
-    /// `standing` (the epoch's course was not used); `epoch` is `[v_north, v_east,
-    /// speed, sAcc]`.
+    /// earlier epochs (`had_prior`), stopped by its speed unless the temporal model `fed`
+    /// the epoch's course into the heading, or, when the model says so, `standing` (the
+    /// epoch's course was not used); `epoch` is `[v_north, v_east, speed, sAcc]`.
     fn finish(
         &self,
         psi: f32,
         std: f32,
         had_prior: bool,
         standing: bool,
+        fed: bool,
         epoch: [f32; 4],
     ) -> Prediction {
         let [vn, ve, speed, acc] = epoch;
@@ -588,7 +598,7 @@ impl StreamPredictor {
         } else {
             self.policy.stationary_speed
         };
-        let status = if speed < held_speed || (standing && had_prior) {
+        let status = if (speed < held_speed && !fed) || (standing && had_prior) {
             if had_prior && std < 0.99 * MAX_STD_DEG {
                 Status::Held
             } else {
@@ -995,6 +1005,44 @@ mod tests {
             last = p;
         }
         assert!(held > 0 && fed > 0, "probes held {held}, fed {fed}");
+    }
+
+    /// A platform on a noisy receiver (sAcc 0.35 m/s at 1 Hz: the speed bar `3·sAcc` is
+    /// 1.05 m/s) that drives a curve at 1 m/s follows its course, and so is not answered
+    /// `Held`: each answer's heading is the epoch's own (within 10° of the course), not one
+    /// kept from a stand, and a filter told `Held` would fuse it once for the whole curve.
+    #[test]
+    fn a_course_followed_under_the_speed_bar_is_no_hold() {
+        let (sp, _, mut rng) = temporal(11);
+        let mut sp = sp.with_platform(Some(Platform::Robot));
+        let mut h = sp.history();
+        let mut noise = move || rng.random_range(-0.02f32..0.02);
+        let mut ep = |t: usize, speed: f32, deg: f32| {
+            let (s, c) = deg.to_radians().sin_cos();
+            Epoch {
+                t_s: t as f64,
+                v_north: speed * c + noise(),
+                v_east: speed * s + noise(),
+                speed_acc: 0.35,
+            }
+        };
+        for t in 0..20 {
+            sp.predict(&mut h, &ep(t, 1.6, 0.0));
+        }
+        let mut followed = 0;
+        for t in 20..50 {
+            let course = 6.0 * (t - 19) as f32;
+            let p = sp.predict(&mut h, &ep(t, 1.0, course));
+            let off = (p.heading_deg - course.rem_euclid(360.0) + 540.0).rem_euclid(360.0) - 180.0;
+            if off.abs() < 10.0 {
+                followed += 1;
+                assert_ne!(p.status, Status::Held, "{t}: {p:?}");
+            }
+        }
+        assert!(
+            followed >= 25,
+            "{followed} of 30 answers followed the course"
+        );
     }
 
     /// A parked car under poor sky keeps its heading: its receiver's noise at rest is
