@@ -1033,7 +1033,7 @@ mod tests {
         for t in 20..50 {
             let course = 6.0 * (t - 19) as f32;
             let p = sp.predict(&mut h, &ep(t, 1.0, course));
-            let off = (p.heading_deg - course.rem_euclid(360.0) + 540.0).rem_euclid(360.0) - 180.0;
+            let off = crate::head::wrap_rad((p.heading_deg - course).to_radians()).to_degrees();
             if off.abs() < 10.0 {
                 followed += 1;
                 assert_ne!(p.status, Status::Held, "{t}: {p:?}");
