@@ -151,9 +151,8 @@ pub fn advance(
 /// epoch's (trained on noise it cannot see through, it would only make σ jitter).
 /// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
 /// A car moving at speed then gains the turn term, a platform moving its share of it
-/// ([`crate::modes::SigmaMaps::with_turn`]) unless its answer is led past its
-/// receiver's lag ([`crate::modes::Step::lead_s`]; the share stands for that lag),
-/// and a car whose receiver reports no speed accuracy its lag term
+/// ([`crate::modes::SigmaMaps::with_turn`]), and a car whose receiver reports no
+/// speed accuracy its lag term
 /// ([`crate::modes::SigmaMaps::with_lag`]).
 /// A car or platform moving at [`crate::modes::TURN_SPEED`] or faster has a σ of at
 /// least the course scatter the source has shown at speed over the speed
@@ -193,8 +192,7 @@ pub fn reported_sigma(
         .exp();
     let car = st.vehicle.car;
     let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
-    let led = step.lead_s > 0.0;
-    let sigma = maps.with_turn(car, led, moved, step.speed, mapped, st.yaw);
+    let sigma = maps.with_turn(car, moved, step.speed, mapped, st.yaw);
     let sigma = maps.with_lag(step.has_acc, car, moved, step.speed, sigma, st.yaw);
     let scatter = st.vehicle.scatter;
     // Only a receiver noisier than the filter takes it to be: where the scatter is
@@ -223,10 +221,10 @@ mod tests {
     use crate::modes::{SigmaMaps, Step, StepState};
 
     /// A platform moving at 1.5 m/s through a 20 °/s turn: its σ carries its share of
-    /// the turn term unless its answer is led (the lead takes out the lag that share
-    /// stands for), in which case it keeps its class map's σ.
+    /// the turn term, led or not (the lead takes out only the least lag a filtering
+    /// receiver has).
     #[test]
-    fn a_led_platform_answer_drops_the_turn_share() {
+    fn a_led_platform_answer_keeps_the_turn_share() {
         let maps = SigmaMaps {
             yaw_s: 1.0,
             ..SigmaMaps::default()
@@ -251,8 +249,8 @@ mod tests {
             "unled: {plain}° against the map's {map}°"
         );
         assert!(
-            (led - map).abs() < 1e-3,
-            "led: {led}° against the map's {map}°"
+            (led - plain).abs() < 1e-3,
+            "led: {led}° against the unled {plain}°"
         );
     }
 }

@@ -22,17 +22,19 @@
 //! * **Receivers lie.** The measurement σ is the receiver's noise over the speed, with
 //!   the noise taken as the larger of the reported sAcc and a running estimate from the
 //!   speeds the receiver reports when slow (a low quantile: a stopped vehicle's speed is
-//!   pure noise). At speed, a velocity change a car cannot make in `dt` (over
+//!   pure noise; a receiver that holds static keeps the first guess, its zeros showing
+//!   no noise). At speed, a velocity change a car cannot make in `dt` (over
 //!   `a_max·dt`) is a glitch and is not used (at most `max_skips` in a row).
 //! * **Receivers lag.** A receiver that holds static (exact zeros at rest, hardly ever a
 //!   creeping speed) runs a navigation filter, and its course trails a turn by the
-//!   yaw rate times its lag. A vehicle not known to be a car is answered ahead of the
-//!   filter's heading by `atan(ω·τ)`: ω the yaw rate smoothed over `LEAD_YAW_TAU_S`
-//!   and shrunk by its own scatter (a noisy course is not differentiated), τ the
-//!   model's `lag_s`, or `hold_lag_s` for such a receiver. The filter's own state
-//!   follows the course; only the answer leads (the robots' consumer rows of
-//!   models/reports/unmet.md).
-//! * **A standing car stays put.** Its epochs within the noise (under 3σ) feed nothing
+//!   yaw rate times its lag. Such a vehicle, car or not, and any vehicle not known to
+//!   be a car is answered ahead of the filter's heading by `atan(ω·τ)`: ω the yaw rate
+//!   smoothed over `LEAD_YAW_TAU_S` and shrunk by its own scatter (a noisy course is
+//!   not differentiated), τ the model's `lag_s`, or `hold_lag_s` for such a receiver.
+//!   The filter's own state follows the course; only the answer leads (the consumer
+//!   rows of models/reports/unmet.md).
+//! * **A standing car stays put.** Its epochs within the noise (under 3σ, or under the
+//!   release bar on a receiver that holds static, whose noise is a guess) feed nothing
 //!   (no gain, no steering noise); it leaves rest only on a velocity reachable from rest since
 //!   the last used epoch, confirmed by the next epoch, and (for `axis_secs`) along the
 //!   axis of a sure held heading. On the simulator's validation cars this cut the
@@ -83,7 +85,9 @@ pub use sigma::{
 };
 pub use start::START_S;
 pub use state::{HeldHeading, MotionRun, Step, StepState};
-pub use vehicle::{Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED, HOLD_ZEROS_PER_CREEP};
+pub use vehicle::{
+    Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED, HOLD_MIN_ZEROS, HOLD_ZEROS_PER_CREEP,
+};
 
 #[cfg(test)]
 mod tests {
@@ -263,12 +267,19 @@ mod tests {
         assert!(lead.abs() < 1.0, "creeping at rest: {lead}°");
         let mut v = Vehicle::UNKNOWN;
         v.observe_hold(0.0);
+        assert!(!v.holds_static(), "one zero is a bad fix, not a hold");
+        for _ in 1..HOLD_MIN_ZEROS {
+            v.observe_hold(0.0);
+        }
         assert!(v.holds_static());
         v.observe_hold(1.5);
         assert!(v.holds_static(), "motion starts with a jump");
-        v.observe_hold(0.05f32.hypot(0.1));
+        for _ in 0..HOLD_MIN_ZEROS {
+            v.observe_hold(0.05f32.hypot(0.1));
+        }
         assert!(!v.holds_static(), "as many creeping speeds as zeros");
         // A stop that creeps for an epoch on its way down, then stands for 2 s at 5 Hz.
+        let mut v = Vehicle::UNKNOWN;
         for _ in 0..10 {
             v.observe_hold(0.0);
         }
@@ -276,7 +287,8 @@ mod tests {
         assert!(v.holds_static(), "an epoch of creeping among zeros: {v:?}");
     }
 
-    /// A car turning at 10°/s at 1.5 m/s (a junction) with its antenna [`LEVER_M`]
+    /// A car turning at 10°/s at 1.5 m/s (a junction) on a receiver that shows its
+    /// noise at rest, with its antenna [`LEVER_M`]
     /// ahead of the rear axle: the course leads the heading by `atan(ω·L/v)`, which
     /// the answer takes out as far as the lag's fade leaves it (`ModeParams::lever`;
     /// the filter's own heading stays on the course). Reversing out of a stand through
@@ -290,14 +302,14 @@ mod tests {
         let (lever_s, _) = ModeParams::default().lever(&car, 1.5);
         assert!(lever_s > 0.0 && lever_s <= LEVER_M / 1.5);
         let want = (10f32.to_radians() * lever_s).atan().to_degrees();
-        let lead = lead_in_turn(Platform::Car, 0.0);
+        let lead = lead_in_turn(Platform::Car, 0.01);
         // The yaw rate is still growing (smoothed over 2 s) and shrunk by its scatter.
         let taken = 0.6 * want..want + 1.0;
         assert!(taken.contains(&-lead), "forward: {lead}°, want −{want}°");
         let mut st = StepState::fresh(Platform::Car);
-        run(&mut st, 10, 0.0, 0.0);
+        run(&mut st, 10, 0.01, 0.0);
         run(&mut st, 10, 1.5, 0.0);
-        run(&mut st, 10, 0.0, 0.0);
+        run(&mut st, 10, 0.01, 0.0);
         let mut last = (0.0, 0.0);
         for k in 1..=25 {
             let (d, c) = no_acc(&mut st, 1.5, 180.0 + 2.0 * k as f32);
@@ -307,13 +319,31 @@ mod tests {
         let lead = wrap_rad(last.0 - last.1 - std::f32::consts::PI).to_degrees();
         assert!(taken.contains(&lead), "reversing: {lead}°, want {want}°");
         let mut st = StepState::fresh(Platform::Car);
-        run(&mut st, 10, 0.0, 0.0);
+        run(&mut st, 10, 0.01, 0.0);
         run(&mut st, 10, 3.0, 0.0);
         for k in 1..=25 {
             let (d, c) = no_acc(&mut st, 3.0, 2.0 * k as f32);
             let off = wrap_rad(d.psi - c).to_degrees();
             assert!(off.abs() < 1.0, "3 m/s: {off}° off the course");
         }
+    }
+
+    /// A car whose receiver holds static (exact zeros at rest) runs behind a navigation
+    /// filter's lag as a robot's does: its answer leads the course by the lag as well
+    /// as taking out the lever arm, so it sits about `atan(10°/s × hold_lag_s)` ahead
+    /// of the answer on a receiver that shows its noise at rest.
+    #[test]
+    fn a_static_hold_cars_answer_is_led_too() {
+        let held = lead_in_turn(Platform::Car, 0.0);
+        let noisy = lead_in_turn(Platform::Car, 0.01);
+        let lag = (10f32.to_radians() * ModeParams::default().hold_lag_s)
+            .atan()
+            .to_degrees();
+        let ahead = held - noisy;
+        assert!(
+            (0.6 * lag..lag + 1.0).contains(&ahead),
+            "static hold {held}°, noisy {noisy}°: {ahead}° ahead, want about {lag}°"
+        );
     }
 
     /// Leaving a stand, the step from the held heading to the first course (a spin in
@@ -373,6 +403,31 @@ mod tests {
             let off = wrap_rad(d.psi - c).to_degrees();
             assert!(off.abs() < 5.0, "epoch {k} of the turn: {off}° off: {st:?}");
         }
+    }
+
+    /// A car parked on a receiver that holds static (exact zeros at rest) whose
+    /// receiver blips: pairs of epochs at 0.6 m/s 45° off its axis (within what the
+    /// glitch gate lets a departure take) between its zeros. Its noise is a guess, so the blips are not motion: the held heading
+    /// stays. (Fed with the gain their σ gave, such blips turned held headings by tens
+    /// of degrees on simulated consumer receivers.) A departure at 1.5 m/s still leaves.
+    #[test]
+    fn blips_of_a_static_hold_receiver_do_not_turn_a_parked_car() {
+        let mut st = StepState::fresh(Platform::Car);
+        run(&mut st, 50, 5.0, 30.0);
+        run(&mut st, 15, 0.0, 30.0);
+        assert!(st.vehicle.holds_static() && st.car_stands(), "{st:?}");
+        for _ in 0..10 {
+            run(&mut st, 2, 0.6, 75.0);
+            run(&mut st, 5, 0.0, 30.0);
+        }
+        let off = wrap_rad(st.psi - 30f32.to_radians()).to_degrees();
+        assert!(
+            off.abs() < 1.0,
+            "blips turned the held heading by {off}°: {st:?}"
+        );
+        run(&mut st, 10, 1.5, 40.0);
+        let off = wrap_rad(st.psi - 40f32.to_radians()).to_degrees();
+        assert!(off.abs() < 3.0, "departed {off}° off its course: {st:?}");
     }
 
     /// A course that zig-zags ±15° about a straight line (a noisy receiver) reads as

@@ -29,12 +29,24 @@ pub(super) fn measurement(speed: f32, sigma: f32) -> (f32, f32) {
 
 /// Track the low quantile of slow speeds (a stopped receiver's noise) and whether the
 /// receiver holds static ([`Vehicle::observe_hold`]).
+///
+/// The estimate starts at a guess: the reported accuracy, or 0.1 m/s without one. A
+/// receiver that holds static keeps at least that guess. Its exact zeros at rest measure
+/// its hold, not its noise; learnt from, they drove the estimate to 1e-20 m/s and below,
+/// a value no training receiver shows. The network reads the estimate's log, and on such
+/// a receiver doubted every answer, so moving platforms got the uniform σ at 0.5–1 m/s
+/// and standing cars 75°. The consumer sections of models/reports/unmet.md show the
+/// effect.
 #[inline]
 pub(super) fn update_noise(mp: &ModeParams, v: &mut Vehicle, speed: f32, acc: f32) {
     v.observe_hold(speed);
+    let guess = if acc.is_finite() { acc } else { 0.1 } * mp.quantile_factor();
     if !v.noise.is_finite() {
-        let init = if acc.is_finite() { acc } else { 0.1 };
-        v.noise = init * mp.quantile_factor();
+        v.noise = guess;
+    }
+    if v.holds_static() {
+        v.noise = v.noise.max(guess);
+        return;
     }
     if speed < mp.noise_speed {
         let below = if speed < v.noise { 1.0 } else { 0.0 };

@@ -65,8 +65,9 @@ pub struct ModeParams {
     /// ...for at most this long (s), in case the held heading was wrong.
     pub axis_secs: f32,
     /// A receiver's course lag (s) that the answered heading of a vehicle not known to
-    /// be a car leads by (the filtered yaw rate times the lag, see
-    /// [`crate::modes::commit`]); 0 for none. Own-log training fits it.
+    /// be a car (or of any vehicle on a receiver that holds static) leads by (the
+    /// filtered yaw rate times the lag, see [`crate::modes::commit`]); 0 for none.
+    /// Own-log training fits it.
     pub lag_s: f32,
     /// The lag (s) assumed, when larger than `lag_s`, for a receiver that holds static
     /// ([`Vehicle::holds_static`]): a static hold is part of a receiver's navigation
@@ -129,15 +130,17 @@ impl Default for ModeParams {
 }
 
 impl ModeParams {
-    /// The lag (s) the answered heading leads a vehicle's course by: none for a car
-    /// (its results are tuned without), `lag_s` or, for a receiver that holds static,
-    /// `hold_lag_s` if larger.
+    /// The lag (s) the answered heading leads a vehicle's course by. A receiver that
+    /// holds static is a navigation filter's output, which lags: `hold_lag_s`, or
+    /// `lag_s` if larger, whatever carries it. Otherwise `lag_s` for a vehicle not known
+    /// to be a car, and nothing for a car (its results are tuned on receivers that
+    /// show no sign of their lag).
     #[inline]
     pub(super) fn lead_s(&self, v: &Vehicle) -> f32 {
-        if v.car {
-            0.0
-        } else if v.holds_static() {
+        if v.holds_static() {
             self.lag_s.max(self.hold_lag_s)
+        } else if v.car {
+            0.0
         } else {
             self.lag_s
         }

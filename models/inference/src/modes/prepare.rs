@@ -3,7 +3,7 @@
 
 use super::noise::{cap2, driving_variance, measured, measurement, still_variance, update_noise};
 use super::params::ModeParams;
-use super::release::{glitch, keep_or_restore_held, track_motion};
+use super::release::{glitch, keep_or_restore_held, track_motion, RELEASE_SPEED};
 use super::scatter::update_scatter;
 use super::start::started;
 use super::state::{Step, StepState};
@@ -51,7 +51,13 @@ pub fn prepare(
     }
     // A car whose speed is within its receiver's noise (under 3σ: 1% of a standing
     // receiver's epochs, 37% under the `√2σ` that `measurement` uses) is taken to stand.
-    let car_at_rest = st.vehicle.car && !moving && speed < 3.0 * sig;
+    // So is a standing car whose receiver holds static, at any speed under the release
+    // bar: that receiver's noise is a guess (its zeros show none), so a speed above 3σ
+    // of it is no sign of motion, and speeds between its zeros are blips that turned
+    // held headings by tens of degrees. The release rule says when such a car drives.
+    let blip =
+        st.car_stands() && st.vehicle.holds_static() && !st.released() && speed < RELEASE_SPEED;
+    let car_at_rest = st.vehicle.car && ((!moving && speed < 3.0 * sig) || blip);
     // Steering turns the heading with distance driven: not over a glitch, nor over a
     // car at rest (its noise speed is no distance).
     let p = if !step.glitch && !car_at_rest {

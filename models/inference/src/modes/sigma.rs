@@ -159,23 +159,16 @@ impl SigmaMaps {
     /// standing epochs take their class map's σ as it is: there the speed sets the error
     /// (and a held heading's turn is over). Other vehicles moving get
     /// [`PLATFORM_TURN_SHARE`] of the term from [`PLATFORM_TURN_SPEED`], added in
-    /// quadrature and not mapped again (see `car_turn`), unless their answer is `led`
-    /// past the receiver's lag (the lag is what that share stands for).
-    pub fn with_turn(
-        &self,
-        car: bool,
-        led: bool,
-        moving: bool,
-        speed: f32,
-        mapped_deg: f32,
-        yaw: f32,
-    ) -> f32 {
+    /// quadrature and not mapped again (see `car_turn`), also when their answer is led
+    /// ([`crate::modes::Step::lead_s`]): the lead takes out the least lag a filtering
+    /// receiver has, and the share covers the rest, which no course shows.
+    pub fn with_turn(&self, car: bool, moving: bool, speed: f32, mapped_deg: f32, yaw: f32) -> f32 {
         if !moving || self.yaw_s <= 0.0 || !yaw.is_finite() {
             return mapped_deg;
         }
         let term = self.yaw_s * yaw.abs().to_degrees();
         if !car {
-            if speed < PLATFORM_TURN_SPEED || led {
+            if speed < PLATFORM_TURN_SPEED {
                 return mapped_deg;
             }
             return mapped_deg.hypot(PLATFORM_TURN_SHARE * term);
@@ -272,34 +265,18 @@ mod tests {
     fn turn_term_adds_in_quadrature_for_moving_vehicles() {
         let (ten, maps) = turning(0.4);
         for yaw in [ten, -ten] {
-            assert!((maps.with_turn(true, false, true, 8.0, 3.0, yaw) - 5.0).abs() < 1e-4);
+            assert!((maps.with_turn(true, true, 8.0, 3.0, yaw) - 5.0).abs() < 1e-4);
         }
+        assert_eq!(maps.with_turn(true, true, 1.5, 3.0, ten), 3.0, "slow");
+        assert_eq!(maps.with_turn(true, false, 8.0, 3.0, ten), 3.0, "standing");
         assert_eq!(
-            maps.with_turn(true, false, true, 1.5, 3.0, ten),
-            3.0,
-            "slow"
-        );
-        assert_eq!(
-            maps.with_turn(true, false, false, 8.0, 3.0, ten),
-            3.0,
-            "standing"
-        );
-        assert_eq!(
-            SigmaMaps::default().with_turn(true, false, true, 8.0, 3.0, ten),
+            SigmaMaps::default().with_turn(true, true, 8.0, 3.0, ten),
             3.0
         );
         let platform = 3f32.hypot(PLATFORM_TURN_SHARE * 4.0);
-        assert!((maps.with_turn(false, false, true, 1.5, 3.0, ten) - platform).abs() < 1e-4);
-        assert_eq!(
-            maps.with_turn(false, false, true, 0.5, 3.0, ten),
-            3.0,
-            "creeping"
-        );
-        assert_eq!(
-            maps.with_turn(false, false, false, 1.5, 3.0, ten),
-            3.0,
-            "standing"
-        );
+        assert!((maps.with_turn(false, true, 1.5, 3.0, ten) - platform).abs() < 1e-4);
+        assert_eq!(maps.with_turn(false, true, 0.5, 3.0, ten), 3.0, "creeping");
+        assert_eq!(maps.with_turn(false, false, 1.5, 3.0, ten), 3.0, "standing");
     }
 
     /// A car whose receiver has no sAcc gets the lag term in quadrature while moving

@@ -13,6 +13,11 @@ pub const HOLD_CREEP_SPEED: f32 = 0.25;
 /// shows its noise at rest creeps at least as often as its quantized speed reads 0.
 pub const HOLD_ZEROS_PER_CREEP: u32 = 4;
 
+/// Fewest exact zeros that show a static hold: a second of standing at 5 Hz. One bad
+/// fix printed as 0.0 m/s while driving is no hold, and a receiver taken to hold
+/// static is led and keeps its noise guess ([`Vehicle::holds_static`]).
+pub const HOLD_MIN_ZEROS: u32 = 5;
+
 /// Fewest epochs above `fast_speed` that make a vehicle a car.
 pub const FAST_EPOCHS: u16 = 5;
 
@@ -110,12 +115,13 @@ impl Vehicle {
         }
     }
 
-    /// Whether the receiver holds static: it reports exactly zero at rest and hardly
-    /// ever a creeping speed ([`HOLD_ZEROS_PER_CREEP`]), so motion starts with a jump.
-    /// Raw Doppler velocities (RTKLIB, most u-blox settings) and quantized NMEA speeds
-    /// show their noise at rest.
+    /// Whether the receiver holds static: it has reported exactly zero at rest
+    /// ([`HOLD_MIN_ZEROS`] times or more) and hardly ever a creeping speed
+    /// ([`HOLD_ZEROS_PER_CREEP`]), so motion starts with a jump. Raw Doppler velocities
+    /// (RTKLIB, most u-blox settings) and quantized NMEA speeds show their noise at rest.
     #[inline]
     pub fn holds_static(&self) -> bool {
-        self.zeros > 0 && self.zeros >= HOLD_ZEROS_PER_CREEP.saturating_mul(self.creeps)
+        self.zeros >= HOLD_MIN_ZEROS
+            && self.zeros >= HOLD_ZEROS_PER_CREEP.saturating_mul(self.creeps)
     }
 }
