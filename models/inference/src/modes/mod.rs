@@ -407,9 +407,9 @@ mod tests {
 
     /// A car parked on a receiver that holds static (exact zeros at rest) whose
     /// receiver blips: pairs of epochs at 0.6 m/s 45° off its axis (within what the
-    /// glitch gate lets a departure take) between its zeros. Its noise is a guess, so the blips are not motion: the held heading
-    /// stays. (Fed with the gain their σ gave, such blips turned held headings by tens
-    /// of degrees on simulated consumer receivers.) A departure at 1.5 m/s still leaves.
+    /// glitch gate lets a departure take) between its zeros. Its noise is a guess, so
+    /// the blips are not motion: the held heading stays (fed with the gain their σ gave,
+    /// they turn it 35° here). A departure at 1.5 m/s still leaves.
     #[test]
     fn blips_of_a_static_hold_receiver_do_not_turn_a_parked_car() {
         let mut st = StepState::fresh(Platform::Car);

@@ -36,7 +36,8 @@ pub(super) fn measurement(speed: f32, sigma: f32) -> (f32, f32) {
 /// a value no training receiver shows. The network reads the estimate's log, and on such
 /// a receiver doubted every answer, so moving platforms got the uniform σ at 0.5–1 m/s
 /// and standing cars 75°. The consumer sections of models/reports/unmet.md show the
-/// effect.
+/// effect. Nor is such a receiver ever [`clean`](crate::modes::clean): its noise at
+/// rest is not seen to be under its sAcc.
 #[inline]
 pub(super) fn update_noise(mp: &ModeParams, v: &mut Vehicle, speed: f32, acc: f32) {
     v.observe_hold(speed);
