@@ -7,6 +7,8 @@
 //! * **Cars back up.** After a stop, a car moves off either along its held heading or
 //!   opposite to it; opposite means reversing (course = heading + 180°), not a 180° turn.
 //!   The filter keeps a *mode* (forward or reversing) and measures `course + π·mode`.
+//!   Flipping into reverse takes a sure held heading; leaving a stop along the held
+//!   heading ends a reversal on any heading, since forward is the likelier way out.
 //!   Two escapes keep a wrong mode from lasting: a car never reverses at sustained speed
 //!   (above `escape_speed`, the mode ends and the heading turns by 180°), and a vehicle
 //!   that has not yet shown car-like speed has no reverse mode at all (next point), nor
@@ -184,12 +186,9 @@ mod tests {
         }
     }
 
-    /// A car that backed out, stood, then drove off sideways for good turned in place:
-    /// it is no car, and a platform has no reverse mode, so its answer is its course,
-    /// not the course turned by the half turn it was reversing with.
-    #[test]
-    fn a_car_demoted_while_reversing_answers_its_course() {
-        let mp = ModeParams::default();
+    /// A car (1 Hz, filter alone) that drove north, stood, and backs up southwards
+    /// for `epochs` epochs at 1 m/s: in reverse mode, heading north.
+    fn reversing_car(epochs: usize) -> StepState {
         let mut st = StepState::EMPTY;
         along(&mut st, 0.0, 0.0);
         for _ in 0..8 {
@@ -198,10 +197,20 @@ mod tests {
         for _ in 0..3 {
             along(&mut st, 0.0, 0.0);
         }
-        for _ in 0..3 {
+        for _ in 0..epochs {
             along(&mut st, 1.0, 180.0);
         }
-        assert!(st.vehicle.car && st.reverse, "backing out: {st:?}");
+        assert!(st.vehicle.car && st.reverse, "backing up: {st:?}");
+        st
+    }
+
+    /// A car that backed out, stood, then drove off sideways for good turned in place:
+    /// it is no car, and a platform has no reverse mode, so its answer is its course,
+    /// not the course turned by the half turn it was reversing with.
+    #[test]
+    fn a_car_demoted_while_reversing_answers_its_course() {
+        let mp = ModeParams::default();
+        let mut st = reversing_car(3);
         for _ in 0..3 {
             along(&mut st, 0.0, 0.0);
         }
@@ -214,6 +223,26 @@ mod tests {
         assert!(!st.vehicle.car && !st.reverse, "turned in place: {st:?}");
         let off = wrap_rad(last - 90f32.to_radians()).to_degrees();
         assert!(off.abs() < 10.0, "{off}° off its course: {st:?}");
+    }
+
+    /// A car that backed into a space and leaves it forward is answered forward: a
+    /// departure along the held heading ends the reverse mode, however fast its first
+    /// epoch (at 1 Hz, 3 m/s). Before, the mode held until sustained speed ended it,
+    /// and that turned the held heading by a half turn.
+    #[test]
+    fn a_car_that_backed_in_leaves_forward() {
+        let mp = ModeParams::default();
+        let mut st = reversing_car(4);
+        for _ in 0..20 {
+            along(&mut st, 0.0, 0.0);
+        }
+        for speed in [3.0, 3.5, 4.0, 4.5] {
+            let step = prepare(&mp, 0.5, &mut st, speed, 0.0, 0.1, 1.0);
+            let d = commit(&mut st, &step, &[0.0, 0.0, 0.0], 1.0);
+            let off = wrap_rad(d.psi).to_degrees();
+            assert!(off.abs() < 10.0, "{off}° at {speed} m/s: {st:?}");
+        }
+        assert!(!st.reverse, "driving forward: {st:?}");
     }
 
     /// One 5 Hz epoch of a receiver without sAcc along `course_deg` at `speed` (exact

@@ -104,7 +104,11 @@ fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32,
     } else {
         mp.flip_deg
     };
-    if sure && st.vehicle.car && d.cos() < limit.to_radians().cos() && speed < mp.flip_speed {
+    let against = d.cos() < limit.to_radians().cos();
+    // Forward is the likelier way out of a stop: a reversing car's departure along its
+    // held heading drives forward, however unsure that heading or fast the departure.
+    let leaves_forward = st.reverse && st.t_still > 0.0;
+    if st.vehicle.car && against && (leaves_forward || (sure && speed < mp.flip_speed)) {
         st.reverse = !st.reverse;
         st.t_mode = 0.0;
     }
