@@ -164,7 +164,11 @@ pub fn advance(
 /// already spans the receivers' noise: a floor of one course's noise over-covered the
 /// slow epochs of the shared real drive (models/reports/car-nagoya.md).
 ///
-/// A misread direction is not added as a variance: it is a 180° jump, not a spread,
+/// Until the history shows which way the vehicle faces ([`StepState::sense_known`]),
+/// σ is at least [`crate::modes::SENSE_SIGMA_DEG`]: a car's first motion may be a
+/// back-out, answered as forward until it drives on.
+///
+/// Otherwise a misread direction is not added as a variance: it is a 180° jump, not a spread,
 /// and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior) swamped the
 /// filter's σ so that the map could no longer tell a good epoch from a poor one; the
 /// calibration map's tails cover misreads instead.
@@ -194,6 +198,11 @@ pub fn reported_sigma(
     let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
     let sigma = maps.with_turn(car, moved, step.speed, mapped, st.yaw);
     let sigma = maps.with_lag(step.has_acc, car, moved, step.speed, sigma, st.yaw);
+    let sigma = if sense_unknown(st) {
+        sigma.max(crate::modes::SENSE_SIGMA_DEG)
+    } else {
+        sigma
+    };
     let scatter = st.vehicle.scatter;
     // Only a receiver noisier than the filter takes it to be: where the scatter is
     // within the σ_v in use, the maps (fitted on such receivers) already know it.
@@ -213,6 +222,14 @@ pub fn reported_sigma(
     } else {
         sigma
     }
+}
+
+/// Whether `st`'s vehicle has moved without showing which way it faces
+/// ([`StepState::sense_known`]); a robot (declared) has no reverse mode: it drives
+/// the way it faces.
+#[inline]
+fn sense_unknown(st: &StepState) -> bool {
+    st.moved && !st.sense_known && st.vehicle.platform != crate::modes::Platform::Robot
 }
 
 #[cfg(test)]

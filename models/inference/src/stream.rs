@@ -623,6 +623,7 @@ impl StreamPredictor {
 mod tests {
     use super::*;
     use crate::head::Head;
+    use crate::modes::SENSE_SIGMA_DEG;
     use crate::params::{Arch, ParamSet};
     use crate::weights::ModelMeta;
     use rand::{Rng, SeedableRng};
@@ -1393,6 +1394,45 @@ mod tests {
             "the stand holds at first: {answers:?}"
         );
         assert!(held <= 1.0, "held {held} s: {answers:?}");
+    }
+
+    /// A history that starts with a car backing out of its space (6.5 m at 1.8 m/s,
+    /// facing north while it moves south), standing, and rolling off forward (7 m) is
+    /// answered along its courses, and no epoch tells a back-out from driving forward:
+    /// σ reaches the half turn within two σ until the car drives faster than a car
+    /// reverses (each run counts from its stand, so the two short ones do not add up),
+    /// then it is the course's again. A declared robot drives the way it faces.
+    #[test]
+    fn sigma_covers_a_back_out_until_the_car_drives_on() {
+        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
+        for platform in [Platform::Auto, Platform::Car, Platform::Robot] {
+            let mut sp = StreamPredictor::new(model.clone()).with_platform(Some(platform));
+            let mut h = sp.history();
+            let mut rx = Ublox::new(5.0, 3);
+            let mut drive = vec![[0.0, 0.0]; 25];
+            drive.extend([[1.8, 180.0]; 18]);
+            drive.extend([[0.0, 0.0]; 10]);
+            drive.extend([[1.8, 0.0]; 20]);
+            let early: Vec<_> = drive
+                .iter()
+                .map(|&v| sp.predict(&mut h, &rx.epoch(v)))
+                .filter(|p| p.status != Status::Stationary)
+                .collect();
+            let on: Vec<_> = (0..25)
+                .map(|_| sp.predict(&mut h, &rx.epoch([6.0, 0.0])))
+                .collect();
+            let min = early
+                .iter()
+                .map(|p| p.std_deg)
+                .fold(f32::INFINITY, f32::min);
+            if platform == Platform::Robot {
+                assert!(min < SENSE_SIGMA_DEG, "{platform:?}: {early:?}");
+            } else {
+                assert!(min >= SENSE_SIGMA_DEG, "{platform:?}: {early:?}");
+            }
+            let last = on.last().expect("answers");
+            assert!(last.std_deg < 5.0, "{platform:?}: {on:?}");
+        }
     }
 
     /// At 1 Hz a single spike at rest (3 m/s, along the car or across it) does not

@@ -67,7 +67,8 @@ mod state;
 mod vehicle;
 
 pub use commit::{
-    commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR, YAW_TAU_S,
+    commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR, SENSE_RUN_M,
+    SENSE_SIGMA_DEG, YAW_TAU_S,
 };
 pub(crate) use noise::random_walk_variance;
 pub use params::{ModeParams, LEVER_M};

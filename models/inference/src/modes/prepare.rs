@@ -123,6 +123,7 @@ fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32,
         st.t_mode = 0.0;
         st.psi += pi;
     }
+    st.sense_known |= fast;
     // Several epochs as well as seconds: a run of glitches under poor sky lasts a few
     // epochs and must not make a slow platform a car.
     if st.t_fast >= mp.fast_secs

@@ -94,6 +94,19 @@ pub struct StepState {
     /// [`StepState::released`]): the glitch gate's braking bound applies only then,
     /// when its reference velocity was driven, not a glitch burst's.
     pub driving: bool,
+    /// Metres driven since the last stand (moving, non-glitch epochs), while the
+    /// sense of travel is not yet known ([`SENSE_RUN_M`]).
+    ///
+    /// [`SENSE_RUN_M`]: crate::modes::SENSE_RUN_M
+    pub run_m: f32,
+    /// Whether the history has shown which way the vehicle faces: it drove faster than
+    /// a car reverses (`escape_speed`), or [`SENSE_RUN_M`] without a stand, longer
+    /// than a back-out. Until then a car may be backing out of a space, and its
+    /// answer's σ covers the half turn ([`SENSE_SIGMA_DEG`]).
+    ///
+    /// [`SENSE_RUN_M`]: crate::modes::SENSE_RUN_M
+    /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
+    pub sense_known: bool,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -128,6 +141,8 @@ impl StepState {
         motion_skips: 0,
         before_release: None,
         driving: false,
+        run_m: 0.0,
+        sense_known: false,
         vehicle: Vehicle::UNKNOWN,
     };
 
