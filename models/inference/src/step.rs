@@ -198,6 +198,14 @@ pub fn reported_sigma(
     let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
     let sigma = maps.with_turn(car, moved, step.speed, mapped, st.yaw);
     let sigma = maps.with_lag(step.has_acc, car, moved, step.speed, sigma, st.yaw);
+    // Reversing, a car manoeuvres with its wheel turned: its antenna's course is off
+    // its heading by up to `atan(k_max·L)`, which the lever correction takes out only
+    // as far as a slow course's yaw rate shows it.
+    let sigma = if moved && car && st.reverse && step.lever_max > 0.0 {
+        sigma.hypot(step.lever_max.atan().to_degrees())
+    } else {
+        sigma
+    };
     let sigma = if sense_unknown(st) {
         sigma.max(crate::modes::SENSE_SIGMA_DEG)
     } else {
@@ -268,6 +276,35 @@ mod tests {
         assert!(
             (led - plain).abs() < 1e-3,
             "led: {led}° against the unled {plain}°"
+        );
+    }
+
+    /// A car reversing at 1 m/s (the lever's whole `k_max·L` = 0.2) reports at least
+    /// the antenna's largest lead, `atan(0.2)` = 11.3°, in quadrature with its own σ;
+    /// driving forward, the same epoch keeps the map's σ.
+    #[test]
+    fn a_reversing_cars_sigma_covers_its_antennas_lead() {
+        let maps = SigmaMaps::default();
+        let mut st = StepState::EMPTY;
+        (st.vehicle.car, st.sense_known, st.t_still) = (true, true, 0.0);
+        let step = Step {
+            k: 0.5,
+            moving: true,
+            hold: false,
+            sigma_v: 0.1,
+            lever_s: 1.0,
+            lever_max: 0.2,
+            ..Step::holding(0.0, 0.0, 0.0, 1.0, true)
+        };
+        let log_sigma = 3f32.to_radians().ln();
+        let forward = reported_sigma(&step, log_sigma, 0.0, &st, &maps);
+        st.reverse = true;
+        let reversing = reported_sigma(&step, log_sigma, 0.0, &st, &maps);
+        let lead = 0.2f32.atan().to_degrees();
+        assert!(forward < lead, "forward: {forward}°");
+        assert!(
+            (reversing - forward.hypot(lead)).abs() < 1e-3,
+            "reversing: {reversing}° against {forward}° and the lead's {lead}°"
         );
     }
 }
