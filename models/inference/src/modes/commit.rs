@@ -45,9 +45,9 @@ pub const SENSE_RUN_M: f32 = 10.0;
 
 /// The least σ (degrees) of an answer while the sense of travel is unknown: two σ
 /// reach the half turn a back-out answered as forward is off by. A misread is a jump,
-/// not a spread, so no σ describes it; this one keeps it inside 2σ. On held-out
-/// simulated cars (half of whose drives start by backing out) the 0.5–2 m/s rows'
-/// errors within 2σ rose by 2–7 points (models/reports/unmet.md).
+/// not a spread, so no σ describes it; this one keeps it inside 2σ (the car
+/// sections' 0.5–2 m/s rows of models/reports/unmet.md: half of the simulator's car
+/// drives start by backing out).
 pub const SENSE_SIGMA_DEG: f32 = 90.0;
 
 /// What [`commit`] decided.
