@@ -168,10 +168,10 @@ pub fn advance(
 /// σ is at least [`crate::modes::SENSE_SIGMA_DEG`]: a car's first motion may be a
 /// back-out, answered as forward until it drives on.
 ///
-/// Otherwise a misread direction is not added as a variance: it is a 180° jump, not a spread,
-/// and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior) swamped the
-/// filter's σ so that the map could no longer tell a good epoch from a poor one; the
-/// calibration map's tails cover misreads instead.
+/// Otherwise a misread direction is not added as a variance: it is a 180° jump, not a
+/// spread, and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior)
+/// swamped the filter's σ so that the map could no longer tell a good epoch from a
+/// poor one; the calibration map's tails cover misreads instead.
 pub fn reported_sigma(
     step: &Step,
     log_sigma: f32,

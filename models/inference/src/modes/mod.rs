@@ -228,8 +228,8 @@ mod tests {
 
     /// A car that backed into a space and leaves it forward is answered forward: a
     /// departure along the held heading ends the reverse mode, however fast its first
-    /// epoch (at 1 Hz, 3 m/s). Before, the mode held until sustained speed ended it,
-    /// and that turned the held heading by a half turn.
+    /// epoch (at 1 Hz, 3 m/s). A mode kept until sustained speed ends it turns the
+    /// held heading by a half turn on the way.
     #[test]
     fn a_car_that_backed_in_leaves_forward() {
         let mp = ModeParams::default();

@@ -58,12 +58,12 @@ pub const UNSURE_HELD_DEG: f32 = 60.0;
 /// plain motion (where `3·sAcc` starts one), until the run releases the stand; with
 /// [`RELEASE_CONT_NOISE_K`] a hysteresis of the release bar. A car leaving a stand at
 /// 1–1.5 m/s on a receiver whose sAcc is near 0.35 m/s reads under `3·sAcc` one epoch
-/// in a few, and each such dip restarted the release clock: on simulated 5 and 10 Hz
-/// u-blox and RTKLIB cars that held a stop's heading for well over a second of
-/// driving (the `Held` column of models/reports/unmet.md). Once the run has released, the start
-/// bars apply again: a lower bar there kept a braking car driving into its stop and
-/// moved what its stop held (the 5 Hz u-blox cars' stopped row fell under the 2σ
-/// goal).
+/// in a few; without the hysteresis each such dip restarts the release clock, and on
+/// simulated 5 and 10 Hz u-blox and RTKLIB cars a stop's heading is held for well over
+/// a second of driving (the `Held` column of models/reports/unmet.md). Once the run
+/// has released, the start bars apply again: a lower bar there keeps a braking car
+/// driving into its stop and moves what its stop holds (the 5 Hz u-blox cars'
+/// stopped row falls under the 2σ goal).
 pub const RELEASE_CONT_ACC_K: f32 = 2.5;
 
 /// Times the capped noise σ under which an epoch no longer continues a started run of
