@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # Own-log training measured the way a user meets it: the first half of a log trains
 # (`ghnet train --data`, which itself keeps the last 20% of that half to judge its
-# fit), the second half tests. Logs: 20-minute single-track 5 Hz drives of a robot
-# with a consumer receiver and of cars with u-blox, RTKLIB and consumer receivers, two
-# seeds each (none a recipe's or models/unmet.sh's), and the shared real drive (1 Hz).
-# Per log: MAE on the second half of atan2, kf, the shipped model and the trained one;
-# the platform the fit chose; the wall time of training on the half and on the whole
-# log. Writes models/reports/ownlog.md (a few minutes on 2 cores).
+# fit), the second half tests. Logs: 20-minute single-track 5 Hz drives of robots with
+# consumer, NMEA and u-blox receivers and of cars with u-blox, RTKLIB and consumer
+# receivers, two seeds each (none a recipe's or models/unmet.sh's), and the shared real
+# drive (1 Hz). Per log: MAE on the second half of atan2, kf, the shipped model and the
+# trained one; the platform the fit chose and what the written model changed; the wall
+# time of training on the half and on the whole log. Writes models/reports/ownlog.md
+# (under a minute on 2 cores).
 . "$(dirname "$0")/lab-env.sh"
 OUT=models/reports/ownlog.md
 REAL=../shared/data/real/car-nagoya-2024-1hz.csv
@@ -50,10 +51,20 @@ row() {
   if grep -q "robot not tried" "$T/half.err"; then fit="$fit (no robot: car speeds)"; fi
   file=$($G info --model "$T/m.safetensors" | sed -n 's/^ *"platform": "\([a-z]*\)".*/\1/p')
   local platform="$fit; file $file"
+  # The mode constants the fit changed and the held-out part confirmed (printed
+  # indented as "name: old → new"), or "none".
+  local changed
+  changed=$(sed -n 's/^  \([a-z_]*: [^ ]* → [^ ]*\)$/\1/p' "$T/half.err" | paste -sd ';' - |
+    sed 's/;/; /g')
+  if ! grep -q "^held-out part: .* fitted against" "$T/half.err" ||
+    grep -q "writing ghnet-temporal unchanged" "$T/half.err"; then changed=""; fi
+  if grep -q "training tracks" "$T/half.err" && ! grep -q "not confirmed" "$T/half.err"; then
+    changed="network and σ maps${changed:+; $changed}"
+  fi
   awk -v name="$name" -v n="$n" -v a="$atan" -v k="$kf" -v d="$def" -v m="$mine" \
-    -v p="$platform" -v ts="$ts" -v tf="$tf" 'BEGIN {
-    printf "| %s | %d | %.2f | %.2f | %.2f | %.2f | %.1f | %+.1f | %s | %s | %s |\n",
-      name, n, a, k, d, m, 100 * (a - m) / a, 100 * (d - m) / d, p, ts, tf }'
+    -v p="$platform" -v c="${changed:-none}" -v ts="$ts" -v tf="$tf" 'BEGIN {
+    printf "| %s | %d | %.2f | %.2f | %.2f | %.2f | %.1f | %+.1f | %s | %s | %s | %s |\n",
+      name, n, a, k, d, m, 100 * (a - m) / a, 100 * (d - m) / d, p, c, ts, tf }'
 }
 
 {
@@ -64,16 +75,22 @@ row() {
   echo "the trained model's gain in MAE (positive = better). \"platform\": the mode fit's"
   echo "choice on the first half (\"no robot\": the log drove at car speeds, so a robot was"
   echo "not tried), then the trained file's (the fit's only if its held-out part confirmed"
-  echo "it). Train times are wall seconds on the first half and on the whole log, on a"
-  echo "2-core machine with a load average of $(cut -d ' ' -f 1 /proc/loadavg) at the start."
+  echo "it). \"fitted\": what the written model changed (mode constants as old → new, and"
+  echo "whether the network and its σ maps were fine-tuned). Train times are wall seconds"
+  echo "on the first half and on the whole log, on a 2-core machine with a load average of"
+  echo "$(cut -d ' ' -f 1 /proc/loadavg) at the start."
   echo
-  echo "| log | epochs | MAE atan2 | MAE kf | MAE shipped | MAE trained | vs atan2 [%] | vs shipped [%] | platform | train half [s] | train whole [s] |"
-  echo "|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|"
-  for seed in 7101 7102; do
-    # shellcheck disable=SC2086
-    $G simulate drive $DAY $ROBOT --receivers consumer --seed "$seed" \
-      --output "$T/d.csv" >/dev/null
-    row "robot, consumer, 5 Hz, seed $seed" "$T/d.csv"
+  echo "| log | epochs | MAE atan2 | MAE kf | MAE shipped | MAE trained | vs atan2 [%] | vs shipped [%] | platform | fitted | train half [s] | train whole [s] |"
+  echo "|---|---:|---:|---:|---:|---:|---:|---:|---|---|---:|---:|"
+  seed=7100
+  for style in consumer nmea ublox; do
+    for _ in 1 2; do
+      seed=$((seed + 1))
+      # shellcheck disable=SC2086
+      $G simulate drive $DAY $ROBOT --receivers "$style" --seed "$seed" \
+        --output "$T/d.csv" >/dev/null
+      row "robot, $style, 5 Hz, seed $seed" "$T/d.csv"
+    done
   done
   seed=7200
   for style in ublox rtklib consumer; do
