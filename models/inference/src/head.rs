@@ -90,12 +90,27 @@ pub enum Head {
     Filter,
 }
 
-/// Wrap radians to (−π, π].
+/// Wrap radians to (−π, π] (NaN for a non-finite angle).
+///
+/// An angle already in range comes back as it is, and one outside loses the nearest
+/// whole number of turns: exact where `atan2(sin x, cos x)` rounds twice, and a few
+/// nanoseconds where that costs three transcendental calls. The streaming path wraps
+/// about ten angles per epoch, so this is a visible share of its cost (the `stream`
+/// group of `models/lab/benches/inference.rs`).
 #[inline]
 pub fn wrap_rad(x: f32) -> f32 {
-    let y = x.sin().atan2(x.cos());
-    if y <= -std::f32::consts::PI {
-        y + 2.0 * std::f32::consts::PI
+    use std::f32::consts::{PI, TAU};
+    if x > -PI && x <= PI {
+        return x;
+    }
+    if !x.is_finite() {
+        return f32::NAN;
+    }
+    let y = x - TAU * (x / TAU).round();
+    if y <= -PI {
+        y + TAU
+    } else if y > PI {
+        y - TAU
     } else {
         y
     }
@@ -320,6 +335,29 @@ mod tests {
         assert!((heading_deg(-1.0, 0.0) - 180.0).abs() < 1e-5);
         assert!((heading_deg(0.0, -1.0) - 270.0).abs() < 1e-5);
         assert!(heading_deg(1.0, -1e-9) < 360.0);
+    }
+
+    /// The wrap keeps in-range angles exactly, lands everything else in (−π, π] within
+    /// float rounding of `atan2(sin x, cos x)`, keeps +π and sends −π to +π, and gives
+    /// NaN for what has no direction.
+    #[test]
+    fn wrap_lands_in_the_half_open_turn() {
+        use std::f32::consts::{PI, TAU};
+        for x in [0.0, 1.0, -3.0, PI, 3.1, -3.1] {
+            assert_eq!(wrap_rad(x), x);
+        }
+        assert_eq!(wrap_rad(-PI), PI);
+        let mut x = -40.0f32;
+        while x < 40.0 {
+            let (w, old) = (wrap_rad(x), x.sin().atan2(x.cos()));
+            assert!(w > -PI && w <= PI, "{x} -> {w}");
+            let d = (w - old).abs();
+            assert!(d.min(TAU - d) < 1e-5, "{x}: {w} against {old}");
+            x += 0.0137;
+        }
+        for x in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            assert!(wrap_rad(x).is_nan());
+        }
     }
 
     #[test]
