@@ -51,13 +51,15 @@ row() {
   if grep -q "robot not tried" "$T/half.err"; then fit="$fit (no robot: car speeds)"; fi
   file=$($G info --model "$T/m.safetensors" | sed -n 's/^ *"platform": "\([a-z]*\)".*/\1/p')
   local platform="$fit; file $file"
-  # The mode constants the fit changed and the held-out part confirmed (printed
-  # indented as "name: old → new"), or "none".
+  # What the written model changed: the mode constants the fit changed and the
+  # held-out part confirmed (printed indented as "name: old → new" after the fit; the
+  # boresight among them), and whether the network was fine-tuned; or "none".
   local changed
-  changed=$(sed -n 's/^  \([a-z_]*: [^ ]* → [^ ]*\)$/\1/p' "$T/half.err" | paste -sd ';' - |
-    sed 's/;/; /g')
-  if ! grep -q "^held-out part: .* fitted against" "$T/half.err" ||
-    grep -q "writing ghnet-temporal unchanged" "$T/half.err"; then changed=""; fi
+  changed=$(sed -n '/^mode filter fitted/,$ s/^  \([a-z_]*: [^ ]* → [^ ]*\)$/\1/p' "$T/half.err" |
+    paste -sd ';' - | sed 's/;/; /g')
+  if grep -q "not confirmed on the held-out part: writing .* unchanged" "$T/half.err"; then
+    changed=""
+  fi
   if grep -q "training tracks" "$T/half.err" && ! grep -q "not confirmed" "$T/half.err"; then
     changed="network and σ maps${changed:+; $changed}"
   fi
@@ -75,10 +77,10 @@ row() {
   echo "the trained model's gain in MAE (positive = better). \"platform\": the mode fit's"
   echo "choice on the first half (\"no robot\": the log drove at car speeds, so a robot was"
   echo "not tried), then the trained file's (the fit's only if its held-out part confirmed"
-  echo "it). \"fitted\": what the written model changed (mode constants as old → new, and"
-  echo "whether the network and its σ maps were fine-tuned). Train times are wall seconds"
-  echo "on the first half and on the whole log, on a 2-core machine with a load average of"
-  echo "$(cut -d ' ' -f 1 /proc/loadavg) at the start."
+  echo "it). \"fitted\": what the written model changed (confirmed mode constants as old →"
+  echo "new, the boresight measured on the truth among them; a fine-tuned network)."
+  echo "Train times are wall seconds on the first half and on the whole log, on a 2-core"
+  echo "machine with a load average of $(cut -d ' ' -f 1 /proc/loadavg) at the start."
   echo
   echo "| log | epochs | MAE atan2 | MAE kf | MAE shipped | MAE trained | vs atan2 [%] | vs shipped [%] | platform | fitted | train half [s] | train whole [s] |"
   echo "|---|---:|---:|---:|---:|---:|---:|---:|---|---|---:|---:|"

@@ -530,8 +530,12 @@ impl StreamPredictor {
     /// the head over the window, the filter's update, σ and status.
     fn end(&mut self, h: &mut History, pending: &Pending) -> Prediction {
         let model = self.model.clone();
-        let (Engine::Temporal { head, .. }, ModelKind::Temporal { sigma_map, .. }) =
-            (model.engine(), &model.meta().kind)
+        let (
+            Engine::Temporal { head, .. },
+            ModelKind::Temporal {
+                sigma_map, modes, ..
+            },
+        ) = (model.engine(), &model.meta().kind)
         else {
             unreachable!("a temporal engine has a temporal kind")
         };
@@ -551,7 +555,9 @@ impl StreamPredictor {
         // course at a noisy receiver's slow speeds) is an answer of its own, not a hold.
         let standing = !h.state.moving_now() && d.gain <= 0.0;
         let fed = pending.had_prior && d.gain > 0.0;
-        self.finish(d.psi, std, pending.had_prior, standing, fed, pending.epoch)
+        // The filter runs on courses; the answer is the body's heading.
+        let psi = d.psi + modes.boresight_deg.to_radians();
+        self.finish(psi, std, pending.had_prior, standing, fed, pending.epoch)
     }
 
     /// The filter step from outputs `self.y`: heading (radians) and reported σ
@@ -676,6 +682,36 @@ mod tests {
     }
 
     /// The shipped default's stream, a fresh history and a seeded generator.
+    /// A boresight turns every answer by itself (moving, stopped and held alike: the
+    /// filter runs on courses, the body points the boresight off them) and changes
+    /// nothing else: σ, status and the history's course-frame state are the shipped
+    /// model's.
+    #[test]
+    fn a_boresight_turns_every_answer_and_nothing_else() {
+        let shipped = Model::builtin("ghnet-temporal").expect("built in");
+        let mut meta = shipped.meta().clone();
+        if let ModelKind::Temporal { modes, .. } = &mut meta.kind {
+            assert_eq!(modes.boresight_deg, 0.0, "the shipped model has none");
+            modes.boresight_deg = 2.5;
+        }
+        let turned = Model::new(shipped.params().clone(), meta);
+        let (mut a, mut b) = (
+            StreamPredictor::new(Arc::new(shipped)),
+            StreamPredictor::new(Arc::new(turned)),
+        );
+        let (mut ha, mut hb) = (a.history(), b.history());
+        let mut held = 0;
+        for e in drive(60) {
+            let (pa, pb) = (a.predict(&mut ha, &e), b.predict(&mut hb, &e));
+            let d = (pb.heading_deg - pa.heading_deg + 540.0).rem_euclid(360.0) - 180.0;
+            assert!((d - 2.5).abs() < 1e-3, "{pa:?} {pb:?}");
+            assert_eq!((pa.std_deg, pa.status), (pb.std_deg, pb.status));
+            assert_eq!(ha.state().psi, hb.state().psi);
+            held += usize::from(pa.status == Status::Held);
+        }
+        assert!(held > 0, "the drive stops");
+    }
+
     fn temporal(seed: u64) -> (StreamPredictor, History, rand_chacha::ChaCha8Rng) {
         let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
         let sp = StreamPredictor::new(model);

@@ -87,6 +87,14 @@ pub struct ModeParams {
     /// (models/reports/unmet.md). Files without the field load it; own-log training fits
     /// it.
     pub lever_m: f32,
+    /// Heading minus course (°) while the vehicle drives straight ahead, added to every
+    /// answer: where the body points relative to the direction its antenna moves, as
+    /// the user's truth sees it (an INS mounted a little askew, a crabbing chassis, a
+    /// receiver's boresight). Nothing online can tell it from the course itself, so the
+    /// shipped model has 0 (the simulator draws a few tenths of a degree per
+    /// receiver); own-log training measures it on the log's truth. Files without the
+    /// field load 0.
+    pub boresight_deg: f32,
     /// The platform a source has unless its configuration says otherwise
     /// (`ghnet train --platform` records it; `auto` in older files).
     pub platform: Platform,
@@ -124,6 +132,7 @@ impl Default for ModeParams {
             lag_s: 0.0,
             hold_lag_s: 0.5,
             lever_m: LEVER_M,
+            boresight_deg: 0.0,
             platform: Platform::Auto,
         }
     }

@@ -163,6 +163,7 @@ pub fn fit_modes(model: &Model, tracks: &[LogTrack], platform: Option<Platform>)
         ..start
     };
     let mut best_s = Scored::of(model, best, tracks);
+    fit_boresight(model, tracks, &mut best, &mut best_s);
     let mut tried = Vec::new();
     // The platform first: it decides which other constants matter.
     for p in platforms {
@@ -211,6 +212,107 @@ pub fn fit_modes(model: &Model, tracks: &[LogTrack], platform: Option<Platform>)
     }
 }
 
+/// Speed (m/s) from which an epoch's course measures the boresight
+/// ([`measured_boresight`]), and at least ten times its sAcc: slower, a course's noise
+/// is degrees.
+const BORESIGHT_SPEED: f32 = 1.0;
+
+/// Largest yaw rate of the truth (°/s) at which an epoch measures the boresight: in a
+/// turn a course also leads (a car's lever arm) or trails (a lagging receiver) the
+/// heading.
+const BORESIGHT_YAW_DEG: f32 = 3.0;
+
+/// Largest heading-minus-course (°) that measures the boresight: further, the epoch
+/// reverses, slides or glitches.
+const BORESIGHT_MAX_DEG: f32 = 20.0;
+
+/// Fewest epochs that measure a boresight.
+const BORESIGHT_EPOCHS: usize = 100;
+
+/// Standard errors a measured boresight must stand clear of zero by to be kept.
+const BORESIGHT_SE: f32 = 3.0;
+
+/// A boresight ([`ModeParams::boresight_deg`]) measured on a log's truth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Boresight {
+    /// The model's boresight plus the median of heading minus its answer (°), rounded
+    /// to 0.01°.
+    pub deg: f32,
+    /// Its standard error (°), counting one independent sample per second: a
+    /// receiver's noise and a truth's wander are correlated over seconds.
+    pub se_deg: f32,
+    /// Epochs that measured it.
+    pub epochs: usize,
+}
+
+/// The boresight `model` lacks on `tracks`: its own boresight plus the median of the
+/// truth minus its answer over epochs driving straight ahead at speed (what the model
+/// already corrects, a car's lever arm or a receiver's lag, stays out of it); `None`
+/// with too few such epochs or a correction within [`BORESIGHT_SE`] standard errors of
+/// zero. Measured, not searched: the truth says it directly, and a median over
+/// hundreds of epochs is no held-out part's luck.
+pub fn measured_boresight(model: &Model, tracks: &[LogTrack]) -> Option<Boresight> {
+    let wrap_deg = |x: f32| ghnet_inference::head::wrap_rad(x.to_radians()).to_degrees();
+    let streamed = stream_errors(&Arc::new(model.clone()), tracks);
+    let (mut d, mut secs, mut k) = (Vec::new(), 0.0f64, 0);
+    for t in tracks {
+        for i in 0..t.len() {
+            let e = -streamed.err[k + i].to_degrees();
+            let (vn, ve, acc) = (t.v_north[i], t.v_east[i], t.speed_acc[i]);
+            let speed = vn.hypot(ve);
+            if i == 0 || i + 1 == t.len() || speed < BORESIGHT_SPEED || acc * 10.0 > speed {
+                continue;
+            }
+            let dt = t.t_s[i + 1] - t.t_s[i - 1];
+            let yaw = wrap_deg(t.truth_deg[i + 1] - t.truth_deg[i - 1]) / dt as f32;
+            if dt > 0.0
+                && dt <= 2.5
+                && yaw.abs() <= BORESIGHT_YAW_DEG
+                && e.abs() <= BORESIGHT_MAX_DEG
+            {
+                d.push(e);
+                secs += (0.5 * dt).min(1.0);
+            }
+        }
+        k += t.len();
+    }
+    if d.len() < BORESIGHT_EPOCHS {
+        return None;
+    }
+    let median = |v: &mut Vec<f32>| {
+        let mid = v.len() / 2;
+        *v.select_nth_unstable_by(mid, f32::total_cmp).1
+    };
+    let m = median(&mut d);
+    let mut dev: Vec<f32> = d.iter().map(|e| (e - m).abs()).collect();
+    // Normal-consistent spread (1.4826·MAD); a median's error is 1.2533 σ/√n.
+    let se = 1.2533 * 1.4826 * median(&mut dev) / (secs.max(1.0) as f32).sqrt();
+    let deg = ((modes_of(model).boresight_deg + m) * 100.0).round() / 100.0;
+    (m.abs() >= BORESIGHT_SE * se && deg != modes_of(model).boresight_deg).then_some(Boresight {
+        deg,
+        se_deg: se,
+        epochs: d.len(),
+    })
+}
+
+/// The boresight `model` lacks on `tracks` ([`measured_boresight`]) as a step on
+/// `best`, taken when it gains [`MIN_GAIN`] ([`Scored::gain_over`]) like any other:
+/// a heading offset moves the answers at stops too, whose errors a log's few stops
+/// may centre elsewhere.
+fn fit_boresight(model: &Model, tracks: &[LogTrack], best: &mut ModeParams, best_s: &mut Scored) {
+    let Some(b) = measured_boresight(&with_modes(model, *best), tracks) else {
+        return;
+    };
+    let cand = ModeParams {
+        boresight_deg: b.deg,
+        ..*best
+    };
+    let s = Scored::of(model, cand, tracks);
+    if s.gain_over(best_s) >= MIN_GAIN {
+        (*best, *best_s) = (cand, s);
+    }
+}
+
 /// Try every lag of [`LAGS`] on `best`; true when one gained [`MIN_GAIN`]
 /// ([`Scored::gain_over`]).
 fn fit_lag(model: &Model, tracks: &[LogTrack], best: &mut ModeParams, best_s: &mut Scored) -> bool {
@@ -241,6 +343,7 @@ fn changes(a: &ModeParams, b: &ModeParams) -> Vec<String> {
     for (name, x, y) in [
         ("lag_s", a.lag_s, b.lag_s),
         ("hold_lag_s", a.hold_lag_s, b.hold_lag_s),
+        ("boresight_deg", a.boresight_deg, b.boresight_deg),
     ] {
         if x != y {
             out.push(format!("{name}: {x} → {y}"));
@@ -332,6 +435,38 @@ mod tests {
         let f = fit_modes(&model, &tracks, Some(Platform::Robot));
         assert!(f.modes.lag_s > 0.0, "{f:?}");
         assert!(f.changes.iter().any(|c| c.starts_with("lag_s")), "{f:?}");
+    }
+
+    /// A log whose truth points 2° right of where its vehicle moves (an INS mounted
+    /// askew): the measured boresight moves by those 2° against the same log's own,
+    /// the search takes it, and the fitted model answers the turned truth better. A
+    /// log within its noise of the model measures none.
+    #[test]
+    fn fit_modes_measures_a_turned_truth() {
+        let model = Model::builtin("ghnet-temporal").expect("built in");
+        let log = car_day(crate::drive::ReceiverKind::Rtklib, 31);
+        let own = measured_boresight(&model, &log).map_or(0.0, |b| b.deg);
+        let mut turned = log.clone();
+        for t in &mut turned {
+            for h in &mut t.truth_deg {
+                *h = (*h + 2.0).rem_euclid(360.0);
+            }
+        }
+        let b = measured_boresight(&model, &turned).expect("2° is far outside the noise");
+        assert!((b.deg - own - 2.0).abs() < 0.1, "{b:?} against {own}");
+        assert!(b.se_deg < 0.2 && b.epochs > 1000, "{b:?}");
+        let f = fit_modes(&model, &turned, Some(Platform::Car));
+        assert!((f.modes.boresight_deg - b.deg).abs() < 0.05, "{f:?}");
+        assert!(
+            f.changes.iter().any(|c| c.starts_with("boresight_deg")),
+            "{f:?}"
+        );
+        assert!(f.mae_after < 0.9 * f.mae_before, "{f:?}");
+        let fitted = with_modes(&model, f.modes);
+        assert!(
+            measured_boresight(&fitted, &turned).is_none(),
+            "nothing left to measure"
+        );
     }
 
     /// A 5 Hz car log whose antenna sits `lever` m ahead of the rear axle: ten rounds of

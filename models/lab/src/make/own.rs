@@ -198,6 +198,7 @@ fn own_config(
             100.0 * MIN_GAIN,
             fitted.changes.join(", ")
         );
+        chosen = boresight_alone(base, modes, fitted.modes.boresight_deg, &before, va);
     }
     for c in fitted.changes.iter().filter(|_| confirmed) {
         eprintln!("  {c}");
@@ -227,6 +228,29 @@ fn own_config(
     };
     let kf = Arc::new(kf_model(q_deg_per_sqrt_s, sigma_v_mps, max_gap_s));
     Ok((cfg, kf))
+}
+
+/// `modes` with the fitted boresight `b` alone, if the held-out part `va` confirms it
+/// over `before` (the model as it is there) the way the whole fit is confirmed: it is
+/// measured on the truth, not searched, and may stand when the searched constants
+/// around it do not.
+fn boresight_alone(
+    base: &Model,
+    modes: ModeParams,
+    b: f32,
+    before: &Scored,
+    va: &[LogTrack],
+) -> ModeParams {
+    let cand = ModeParams {
+        boresight_deg: b,
+        ..modes
+    };
+    if cand == modes || !Scored::of(base, cand, va).confirms_over(before) {
+        return modes;
+    }
+    eprintln!("  alone, the held-out part confirms:");
+    eprintln!("  boresight_deg: {} → {b}", modes.boresight_deg);
+    cand
 }
 
 /// The paper's protocol on a user's logs: a per-epoch model restricted to `[lo, hi]`.
