@@ -127,10 +127,13 @@ impl MotionRun {
     /// the run's last epoch (glitch bursts come back to back with other sizes).
     fn steady(&self, mp: &ModeParams, v: [f32; 2]) -> bool {
         let [pn, pe] = self.v;
-        let turn = wrap_rad(v[1].atan2(v[0]) - pe.atan2(pn)).abs();
+        // The angle between the two velocities within RELEASE_COURSE_DEG, from their dot
+        // and cross products (no arctangent on the streaming path).
+        let (dot, cross) = (pn * v[0] + pe * v[1], pn * v[1] - pe * v[0]);
         self.n > 0
             && self.since <= 2.0
-            && turn <= RELEASE_COURSE_DEG.to_radians()
+            && dot > 0.0
+            && cross.abs() <= dot * RELEASE_COURSE_DEG.to_radians().tan()
             && (v[0] - pn).hypot(v[1] - pe) <= mp.a_max * self.since + 0.3
     }
 
@@ -299,9 +302,12 @@ fn demote(st: &mut StepState) {
 /// Whether a velocity leaves a sure held heading's axis (further than `axis_deg` plus
 /// 2σ of the course): a car cannot leave a stand sideways.
 fn off_axis_of_held(mp: &ModeParams, st: &StepState, vn: f32, ve: f32, p: f32, r: f32) -> bool {
+    if !mp.sure(p) {
+        return false;
+    }
     let off = wrap_rad(ve.atan2(vn) - st.psi).abs();
     let off_axis = off.min(std::f32::consts::PI - off);
-    mp.sure(p) && off_axis > mp.axis_deg.to_radians() + 2.0 * r
+    off_axis > mp.axis_deg.to_radians() + 2.0 * r
 }
 
 /// Whether `st` is a standing car whose held heading is unsure ([`UNSURE_HELD_DEG`]).
