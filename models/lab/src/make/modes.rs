@@ -215,22 +215,22 @@ pub fn fit_modes(model: &Model, tracks: &[LogTrack], platform: Option<Platform>)
 /// Speed (m/s) from which an epoch's course measures the boresight
 /// ([`measured_boresight`]), and at least ten times its sAcc: slower, a course's noise
 /// is degrees.
-const BORESIGHT_SPEED: f32 = 1.0;
+pub const BORESIGHT_SPEED: f32 = 1.0;
 
 /// Largest yaw rate of the truth (°/s) at which an epoch measures the boresight: in a
 /// turn a course also leads (a car's lever arm) or trails (a lagging receiver) the
 /// heading.
-const BORESIGHT_YAW_DEG: f32 = 3.0;
+pub const BORESIGHT_YAW_DEG: f32 = 3.0;
 
 /// Largest heading-minus-course (°) that measures the boresight: further, the epoch
 /// reverses, slides or glitches.
-const BORESIGHT_MAX_DEG: f32 = 20.0;
+pub const BORESIGHT_MAX_DEG: f32 = 20.0;
 
 /// Fewest epochs that measure a boresight.
-const BORESIGHT_EPOCHS: usize = 100;
+pub const BORESIGHT_EPOCHS: usize = 100;
 
 /// Standard errors a measured boresight must stand clear of zero by to be kept.
-const BORESIGHT_SE: f32 = 3.0;
+pub const BORESIGHT_SE: f32 = 3.0;
 
 /// A boresight ([`ModeParams::boresight_deg`]) measured on a log's truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
