@@ -80,7 +80,8 @@ pub struct DriveSample {
     /// True horizontal speed, m/s.
     pub true_speed: f32,
     /// The receiver's own course output (u-blox headMot / NMEA course): atan2 of the
-    /// measured velocity, frozen below 0.1 m/s. A baseline, not a model input.
+    /// measured velocity, frozen below 0.1 m/s and while a consumer receiver holds
+    /// static (its velocity snapped to zero). A baseline, not a model input.
     pub receiver_course_deg: f32,
     /// True while the vehicle backs up.
     pub reversing: bool,
@@ -611,7 +612,11 @@ fn observe(
         let vn = ln + rx.sigma * 0.8 * ar[0] + white(rng) + gn;
         let ve = le + rx.sigma * 0.8 * ar[1] + white(rng) + ge;
         let speed = vn.hypot(ve);
-        if speed >= 0.1 || course.is_nan() {
+        // Snaps to zero below its threshold (the track's sAcc factor sets it at
+        // 0.3–0.6 m/s), so motion starts with a jump; its course holds while it does.
+        let snapped =
+            rx.kind == ReceiverKind::Consumer && speed < 0.3 + 0.375 * (rx.sacc_factor - 0.7);
+        if (speed >= 0.1 && !snapped) || course.is_nan() {
             course = ve.atan2(vn);
         }
         let (vn, ve, sacc) = match rx.kind {
@@ -622,11 +627,7 @@ fn observe(
                 let cd = q(course.to_degrees(), 0.1).to_radians();
                 (sp * cd.cos(), sp * cd.sin(), f64::NAN)
             }
-            // Snaps to zero below its threshold (the track's sAcc factor sets it at
-            // 0.3–0.6 m/s), so motion starts with a jump.
-            ReceiverKind::Consumer if speed < 0.3 + 0.375 * (rx.sacc_factor - 0.7) => {
-                (0.0, 0.0, f64::NAN)
-            }
+            ReceiverKind::Consumer if snapped => (0.0, 0.0, f64::NAN),
             ReceiverKind::Consumer => (q(vn, 1e-3), q(ve, 1e-3), f64::NAN),
         };
         out.push(DriveSample {
@@ -776,5 +777,28 @@ mod tests {
             .filter(|w| w[0].true_speed < 0.01 && w[0].truth_heading_deg != w[1].truth_heading_deg)
             .count();
         assert!(spins > 50, "spins {spins}");
+    }
+
+    /// A consumer receiver that holds static (velocity snapped to 0.000) holds its
+    /// course too, however the robot under it spins: the course baseline cannot know
+    /// a heading the receiver's output does not carry.
+    #[test]
+    fn a_consumer_receivers_course_holds_while_it_snaps() {
+        let p = DriveParams {
+            tracks: 2,
+            receivers: vec![ReceiverKind::Consumer],
+            rates_hz: vec![5],
+            ..DriveParams::default().robots()
+        };
+        let mut held = 0;
+        for t in simulate(&p, 9) {
+            for w in t.samples.windows(2) {
+                if w[1].v_north == 0.0 && w[1].v_east == 0.0 && w[1].t_s - w[0].t_s < 0.3 {
+                    assert_eq!(w[0].receiver_course_deg, w[1].receiver_course_deg);
+                    held += 1;
+                }
+            }
+        }
+        assert!(held > 1000, "{held} snapped epochs");
     }
 }
