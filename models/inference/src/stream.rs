@@ -681,7 +681,6 @@ mod tests {
         Model::from_bytes("kf", &bytes).expect("kf round trip")
     }
 
-    /// The shipped default's stream, a fresh history and a seeded generator.
     /// A boresight turns every answer by itself (moving, stopped and held alike: the
     /// filter runs on courses, the body points the boresight off them) and changes
     /// nothing else: σ, status and the history's course-frame state are the shipped
@@ -712,6 +711,7 @@ mod tests {
         assert!(held > 0, "the drive stops");
     }
 
+    /// The shipped default's stream, a fresh history and a seeded generator.
     fn temporal(seed: u64) -> (StreamPredictor, History, rand_chacha::ChaCha8Rng) {
         let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
         let sp = StreamPredictor::new(model);

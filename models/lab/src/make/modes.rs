@@ -19,6 +19,7 @@ use ghnet_inference::weights::ModelKind;
 use ghnet_inference::{Model, Platform};
 
 use super::blocks::{with_modes, Scored, MIN_GAIN};
+use crate::eval::wrap_deg;
 use crate::logs::LogTrack;
 use crate::temporal::{mean_abs_deg, stream_errors};
 
@@ -252,7 +253,6 @@ pub struct Boresight {
 /// zero. Measured, not searched: the truth says it directly, and a median over
 /// hundreds of epochs is no held-out part's luck.
 pub fn measured_boresight(model: &Model, tracks: &[LogTrack]) -> Option<Boresight> {
-    let wrap_deg = |x: f32| ghnet_inference::head::wrap_rad(x.to_radians()).to_degrees();
     let streamed = stream_errors(&Arc::new(model.clone()), tracks);
     let (mut d, mut secs, mut k) = (Vec::new(), 0.0f64, 0);
     for t in tracks {
@@ -287,8 +287,9 @@ pub fn measured_boresight(model: &Model, tracks: &[LogTrack]) -> Option<Boresigh
     let mut dev: Vec<f32> = d.iter().map(|e| (e - m).abs()).collect();
     // Normal-consistent spread (1.4826·MAD); a median's error is 1.2533 σ/√n.
     let se = 1.2533 * 1.4826 * median(&mut dev) / (secs.max(1.0) as f32).sqrt();
-    let deg = ((modes_of(model).boresight_deg + m) * 100.0).round() / 100.0;
-    (m.abs() >= BORESIGHT_SE * se && deg != modes_of(model).boresight_deg).then_some(Boresight {
+    let own = modes_of(model).boresight_deg;
+    let deg = ((own + m) * 100.0).round() / 100.0;
+    (m.abs() >= BORESIGHT_SE * se && deg != own).then_some(Boresight {
         deg,
         se_deg: se,
         epochs: d.len(),
