@@ -152,8 +152,8 @@ pub fn advance(
 /// Standing epochs of a [`crate::modes::clean`] receiver have a map of their own.
 /// A car moving at speed then gains the turn term, a platform moving its share of it
 /// ([`crate::modes::SigmaMaps::with_turn`]), and a car whose receiver reports no
-/// speed accuracy its lag term
-/// ([`crate::modes::SigmaMaps::with_lag`]).
+/// speed accuracy its lag term ([`crate::modes::SigmaMaps::with_lag`]), in gentle
+/// turns too when its velocity holds static (a navigation filter's output).
 /// A car or platform moving at [`crate::modes::TURN_SPEED`] or faster has a σ of at
 /// least the course scatter the source has shown at speed over the speed
 /// ([`crate::modes::SigmaMaps::scatter_k`]) when that scatter exceeds
@@ -197,7 +197,8 @@ pub fn reported_sigma(
     let car = st.vehicle.car;
     let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
     let sigma = maps.with_turn(car, moved, step.speed, mapped, st.yaw);
-    let sigma = maps.with_lag(step.has_acc, car, moved, step.speed, sigma, st.yaw);
+    let smoothing = crate::modes::Smoothing::of(step.has_acc, st.vehicle.holds_static());
+    let sigma = maps.with_lag(smoothing, car, moved, step.speed, sigma, st.yaw);
     // Reversing, a car manoeuvres with its wheel turned: its antenna's course is off
     // its heading by up to `atan(k_max·L)`, which the lever correction takes out only
     // as far as a slow course's yaw rate shows it.

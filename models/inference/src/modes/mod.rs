@@ -83,7 +83,7 @@ pub use scatter::{
     SCATTER_TAU_S,
 };
 pub use sigma::{
-    clean, SigmaMap, SigmaMaps, CLEAN_NOISE_RATIO, LAG_NONE_S, LAG_YAW_DEADBAND_DEG,
+    clean, SigmaMap, SigmaMaps, Smoothing, CLEAN_NOISE_RATIO, LAG_NONE_S, LAG_YAW_DEADBAND_DEG,
     PLATFORM_TURN_SHARE, PLATFORM_TURN_SPEED, SIGMA_KNOTS, TURN_SPEED,
 };
 pub use start::START_S;

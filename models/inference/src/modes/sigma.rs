@@ -181,24 +181,62 @@ impl SigmaMaps {
 
     /// The σ (degrees) of a car moving at [`TURN_SPEED`] or faster whose receiver
     /// reports no speed accuracy, with its lag term:
-    /// `hypot(σ, LAG_NONE_S·max(|ω| − LAG_YAW_DEADBAND_DEG, 0))`, ω in °/s.
+    /// `hypot(σ, LAG_NONE_S·max(|ω| − deadband, 0))`, ω in °/s, the deadband
+    /// [`LAG_YAW_DEADBAND_DEG`] unless the receiver holds static (then none: see
+    /// [`Smoothing::HoldsStatic`]).
     /// Everything else, and older files without a turn term, keeps its σ: other
     /// vehicles' share of the turn term ([`PLATFORM_TURN_SHARE`]) is the lag's already.
     pub fn with_lag(
         &self,
-        has_acc: bool,
+        smoothing: Smoothing,
         car: bool,
         moving: bool,
         speed: f32,
         sigma_deg: f32,
         yaw: f32,
     ) -> f32 {
-        if has_acc || !car || !moving || self.yaw_s <= 0.0 || !yaw.is_finite() || speed < TURN_SPEED
-        {
+        let deadband = match smoothing {
+            Smoothing::Accuracy => return sigma_deg,
+            Smoothing::Unknown => LAG_YAW_DEADBAND_DEG,
+            Smoothing::HoldsStatic => 0.0,
+        };
+        if !car || !moving || self.yaw_s <= 0.0 || !yaw.is_finite() || speed < TURN_SPEED {
             return sigma_deg;
         }
-        let turning = (yaw.abs().to_degrees() - LAG_YAW_DEADBAND_DEG).max(0.0);
+        let turning = (yaw.abs().to_degrees() - deadband).max(0.0);
         sigma_deg.hypot(LAG_NONE_S * turning).min(MAX_STD_DEG)
+    }
+}
+
+/// What a source's velocities say about its receiver's smoothing, which decides the lag
+/// term of [`SigmaMaps::with_lag`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Smoothing {
+    /// The receiver reports a speed accuracy (raw Doppler, u-blox): the turn term
+    /// (`yaw_s`), fitted on such receivers, covers its lag.
+    Accuracy,
+    /// No speed accuracy: an NMEA or consumer unit whose velocity may be its navigation
+    /// filter's output, or a raw one; a course's noise reads as turning up to
+    /// [`LAG_YAW_DEADBAND_DEG`].
+    Unknown,
+    /// No speed accuracy, and the velocity holds static
+    /// ([`crate::modes::Vehicle::holds_static`]): a navigation filter's output, whose
+    /// course trails every turn, the gentle ones too, and is smooth enough not to read
+    /// its noise as turning. With the deadband, simulated consumer cars' gentle turns
+    /// (1.5–4 °/s) fell short of 90% within 2σ at 1, 5 and 10 Hz, their answers trailing
+    /// the heading there (models/reports/unmet.md).
+    HoldsStatic,
+}
+
+impl Smoothing {
+    /// The smoothing of a receiver that reports an sAcc (`has_acc`) or not, and whose
+    /// velocity holds static or not.
+    pub fn of(has_acc: bool, holds_static: bool) -> Self {
+        match (has_acc, holds_static) {
+            (true, _) => Smoothing::Accuracy,
+            (false, false) => Smoothing::Unknown,
+            (false, true) => Smoothing::HoldsStatic,
+        }
     }
 }
 
@@ -216,7 +254,8 @@ impl SigmaMaps {
 pub const LAG_NONE_S: f32 = 0.5;
 
 /// Yaw rate (°/s) below which [`SigmaMaps::with_lag`] adds nothing, and which it
-/// subtracts above: about what a receiver without sAcc reads as turning on a straight
+/// subtracts above, for a receiver not known to hold static ([`Smoothing::Unknown`]):
+/// about what a receiver without sAcc reads as turning on a straight
 /// at speed (a course noise near 1° at 1 Hz differences to about 1.4°/s), which is not
 /// a turn its lag could trail. Without it the term widened the gentle turns (1.5–4
 /// °/s) of the held-out cars, already the best covered, past 80% within 1σ.
@@ -280,7 +319,8 @@ mod tests {
     }
 
     /// A car whose receiver has no sAcc gets the lag term in quadrature while moving
-    /// at [`TURN_SPEED`] or faster and turning faster than the deadband; one with sAcc,
+    /// at [`TURN_SPEED`] or faster and turning faster than the deadband (at any rate
+    /// when its receiver holds static); one with sAcc,
     /// another vehicle (whose turn share is the lag's), a straight, a standing or slow
     /// epoch and an older file (no turn term) do not.
     #[test]
@@ -288,23 +328,31 @@ mod tests {
         let (ten, maps) = turning(1.0);
         let lagged = 3f32.hypot(LAG_NONE_S * (10.0 - LAG_YAW_DEADBAND_DEG));
         for yaw in [ten, -ten] {
-            assert!((maps.with_lag(false, true, true, 8.0, 3.0, yaw) - lagged).abs() < 1e-4);
+            let s = maps.with_lag(Smoothing::Unknown, true, true, 8.0, 3.0, yaw);
+            assert!((s - lagged).abs() < 1e-4);
         }
+        // A receiver that holds static lags in gentle turns too: no deadband.
+        let gentle = 1.0f32.to_radians();
+        let s = maps.with_lag(Smoothing::HoldsStatic, true, true, 8.0, 3.0, gentle);
+        assert!((s - 3f32.hypot(LAG_NONE_S)).abs() < 1e-4);
+        let s = maps.with_lag(Smoothing::Unknown, true, true, 8.0, 3.0, gentle);
+        assert_eq!(s, 3.0, "within the deadband");
         let straight = LAG_YAW_DEADBAND_DEG.to_radians();
+        let (none, acc) = (Smoothing::Unknown, Smoothing::Accuracy);
         let kept = [
-            ((false, false, true, 8.0, ten), "platform"),
-            ((true, true, true, 8.0, ten), "has sAcc"),
-            ((false, true, false, 8.0, ten), "standing"),
-            ((false, true, true, 1.5, ten), "slow car"),
-            ((false, true, true, 8.0, straight), "straight"),
+            ((none, false, true, 8.0, ten), "platform"),
+            ((acc, true, true, 8.0, ten), "has sAcc"),
+            ((none, true, false, 8.0, ten), "standing"),
+            ((none, true, true, 1.5, ten), "slow car"),
+            ((none, true, true, 8.0, straight), "straight"),
         ];
-        for ((acc, car, moving, speed, yaw), what) in kept {
-            let s = maps.with_lag(acc, car, moving, speed, 3.0, yaw);
+        for ((smoothing, car, moving, speed, yaw), what) in kept {
+            let s = maps.with_lag(smoothing, car, moving, speed, 3.0, yaw);
             assert_eq!(s, 3.0, "{what}");
         }
         let old = SigmaMaps::default();
         assert_eq!(
-            old.with_lag(false, true, true, 8.0, 3.0, ten),
+            old.with_lag(Smoothing::HoldsStatic, true, true, 8.0, 3.0, ten),
             3.0,
             "older file"
         );
