@@ -110,8 +110,9 @@ pub enum HeadingStatus {
     /// Moving, but too slowly for a trustworthy heading (std above the policy limit);
     /// the heading and std are still filled in.
     LowSpeed = 1,
-    /// Horizontal speed below the stationary threshold: heading is not observable.
-    /// The fields carry whatever the model computed; do not use them.
+    /// Stopped with no heading known (speed below the stationary threshold, or a
+    /// temporal model's stand before its history has a heading): heading is not
+    /// observable. The fields carry whatever the model computed; do not use them.
     Stationary = 2,
     /// The input was rejected (non-finite value, speed above the limit, negative
     /// accuracy, receiver-flagged invalid, timestamp going backwards). Heading fields

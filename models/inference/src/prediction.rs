@@ -16,7 +16,9 @@ pub enum Status {
     /// A heading exists but σ exceeds the policy's limit: do not feed it to a filter
     /// without inflating its variance.
     LowSpeed,
-    /// Horizontal speed below the stationary threshold: heading is not observable.
+    /// Stopped with no heading known (speed below the stationary threshold, or a
+    /// temporal model's stand before its history has a heading): heading is not
+    /// observable.
     Stationary,
     /// The input was not a usable velocity (NaN, infinite, absurd): no heading.
     Invalid,

@@ -32,7 +32,9 @@
 //!
 //! A stopped vehicle that has a heading from its history is answered [`Status::Held`]
 //! with that heading and a σ that grows with the time stopped; without one it is
-//! `Stationary`. Stopped is the speed (under `max(stationary_speed, 3·sAcc)`) or, for
+//! `Stationary`, the uniform σ and a heading that is a guess: the one the history
+//! holds, or for a declared robot over twice its receiver's noise its course
+//! ([`crate::modes::Vehicle::stationary_course`]). Stopped is the speed (under `max(stationary_speed, 3·sAcc)`) or, for
 //! the temporal model, its own decision that the epoch did not move (its course was
 //! not used, so the heading is the held one): a noisy receiver's speed at rest often
 //! passes `3·sAcc`, and those epochs were answered `Ok` with the held heading, which a
