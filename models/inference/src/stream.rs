@@ -34,9 +34,10 @@
 //! with that heading and a σ that grows with the time stopped; without one it is
 //! `Stationary`, the uniform σ and a heading that is a guess: the one the history
 //! holds, or for a declared robot over twice its receiver's noise its course
-//! ([`crate::modes::Vehicle::stationary_course`]). Stopped is the speed (under `max(stationary_speed, 3·sAcc)`) or, for
-//! the temporal model, its own decision that the epoch did not move (its course was
-//! not used, so the heading is the held one): a noisy receiver's speed at rest often
+//! ([`crate::modes::Vehicle::stationary_course`]). Stopped is the speed (under
+//! `max(stationary_speed, 3·sAcc)`) or, for the temporal model, its own decision that
+//! the epoch did not move (its course was not used, so the heading is the held one):
+//! a noisy receiver's speed at rest often
 //! passes `3·sAcc`, and those epochs were answered `Ok` with the held heading, which a
 //! filter would then fuse again and again as if each were news. The temporal model's
 //! word also overrules the speed the other way: an epoch under `3·sAcc` whose course
