@@ -32,14 +32,12 @@
 //!
 //! A stopped vehicle that has a heading from its history is answered [`Status::Held`]
 //! with that heading and a σ that grows with the time stopped; without one it is
-//! `Stationary`, the uniform σ and a heading that is a guess: the one the history
-//! holds, or for a declared robot over twice its receiver's noise its course
-//! ([`crate::modes::Vehicle::stationary_course`]). Stopped is the speed (under
-//! `max(stationary_speed, 3·sAcc)`) or, for the temporal model, its own decision that
-//! the epoch did not move (its course was not used, so the heading is the held one):
-//! a noisy receiver's speed at rest often
-//! passes `3·sAcc`, and those epochs were answered `Ok` with the held heading, which a
-//! filter would then fuse again and again as if each were news. The temporal model's
+//! `Stationary`, with the uniform σ and the heading the history holds. Stopped is the
+//! speed (under `max(stationary_speed, 3·sAcc)`) or, for the temporal model, its own
+//! decision that the epoch did not move (its course was not used, so the heading is
+//! the held one): a noisy receiver's speed at rest often passes `3·sAcc`, and those
+//! epochs were answered `Ok` with the held heading, which a filter would then fuse
+//! again and again as if each were news. The temporal model's
 //! word also overrules the speed the other way: an epoch under `3·sAcc` whose course
 //! moved the heading is answered by its σ (`Ok` or `LowSpeed`), not `Held`. A platform
 //! on a noisy receiver (sAcc 0.35 m/s at 1 Hz puts the bar at 1.05 m/s) follows its
@@ -560,12 +558,7 @@ impl StreamPredictor {
         let fed = pending.had_prior && d.gain > 0.0;
         // The filter runs on courses; the answer is the body's heading.
         let psi = d.psi + modes.boresight_deg.to_radians();
-        let mut p = self.finish(psi, std, pending.had_prior, standing, fed, pending.epoch);
-        let [vn, ve, speed, acc] = pending.epoch;
-        if p.status == Status::Stationary && h.state.vehicle.stationary_course(modes, speed, acc) {
-            p.heading_deg = degrees_in_turn(ve.atan2(vn) + modes.boresight_deg.to_radians());
-        }
-        p
+        self.finish(psi, std, pending.had_prior, standing, fed, pending.epoch)
     }
 
     /// The filter step from outputs `self.y`: heading (radians) and reported σ
@@ -605,7 +598,8 @@ impl StreamPredictor {
         epoch: [f32; 4],
     ) -> Prediction {
         let [vn, ve, speed, acc] = epoch;
-        let deg = degrees_in_turn(psi);
+        let deg = psi.to_degrees().rem_euclid(360.0);
+        let deg = if deg >= 360.0 { 0.0 } else { deg };
         let held_speed = if acc.is_finite() {
             self.policy.stationary_speed.max(3.0 * acc)
         } else {
@@ -629,17 +623,6 @@ impl StreamPredictor {
             speed,
             status,
         }
-    }
-}
-
-/// An angle (radians) in degrees in [0, 360).
-#[inline]
-fn degrees_in_turn(psi: f32) -> f32 {
-    let deg = psi.to_degrees().rem_euclid(360.0);
-    if deg >= 360.0 {
-        0.0
-    } else {
-        deg
     }
 }
 
@@ -1383,43 +1366,6 @@ mod tests {
             .iter()
             .filter(|p| p.status == Status::Held && p.speed >= 1.0);
         (held.count() as f64 * rx.dt, answers)
-    }
-
-    /// A declared robot's `Stationary` answers (σ the uniform one) give each epoch's
-    /// course once its speed is over twice its sAcc: from a cold start it creeps at
-    /// 0.4 m/s while the start rule still calls it standing, turning as it goes
-    /// (a robot's held heading is stale). Under that speed (noise at rest) it answers
-    /// the heading it holds, and a car creeping alike keeps its held heading throughout.
-    #[test]
-    fn a_stationary_robot_answers_its_course_over_its_noise() {
-        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
-        for platform in [Platform::Robot, Platform::Car] {
-            let mut sp = StreamPredictor::new(model.clone()).with_platform(Some(platform));
-            let mut h = sp.history();
-            let mut rx = Ublox::new(5.0, 3);
-            let rest: Vec<_> = (0..10)
-                .map(|_| sp.predict(&mut h, &rx.epoch([0.0, 0.0])))
-                .collect();
-            let creep: Vec<_> = (0..15)
-                .map(|k| sp.predict(&mut h, &rx.epoch([0.4, 100.0 + 3.0 * k as f32])))
-                .collect();
-            let still: Vec<_> = creep
-                .iter()
-                .filter(|p| p.status == Status::Stationary)
-                .collect();
-            let what = format!("{platform}: {rest:?} {creep:?}");
-            assert!(still.len() >= 5, "{what}");
-            let held = rest[0].heading_deg;
-            assert!(rest.iter().all(|p| p.heading_deg == held), "{what}");
-            for p in still {
-                let target = if platform == Platform::Robot {
-                    p.atan2_deg
-                } else {
-                    held
-                };
-                assert!((p.heading_deg - target).abs() < 1e-3, "{what}");
-            }
-        }
     }
 
     /// A parked car leaving at 1 Hz is answered from its second epoch of driving on:

@@ -3,8 +3,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::params::ModeParams;
-
 /// A receiver that holds static seldom reports a speed above zero and below this
 /// (m/s): its first moving epoch after a stand jumps past it.
 pub const HOLD_CREEP_SPEED: f32 = 0.25;
@@ -22,14 +20,6 @@ pub const HOLD_MIN_ZEROS: u32 = 5;
 
 /// Fewest epochs above `fast_speed` that make a vehicle a car.
 pub const FAST_EPOCHS: u16 = 5;
-
-/// Times its receiver's noise (the reported sAcc, else the σ measured at rest) a
-/// declared robot's speed must exceed for a `Stationary` answer to point along its
-/// course ([`Vehicle::stationary_course`]). At true rest the course is noise and the
-/// held heading the better guess: over every speed, answering the course from 0 m/s
-/// made simulated RTKLIB robots worse than holding, and from this bar up it made every
-/// robot section of `reports/unmet.md` better (`--platform robot`).
-pub const ROBOT_COURSE_NOISE_K: f32 = 2.0;
 
 /// What carries the receiver: whether the mode filter may take it for a car, and
 /// whether it may turn in place. Set per source; `Auto` decides online.
@@ -133,22 +123,5 @@ impl Vehicle {
     pub fn holds_static(&self) -> bool {
         self.zeros >= HOLD_MIN_ZEROS
             && self.zeros >= HOLD_ZEROS_PER_CREEP.saturating_mul(self.creeps)
-    }
-
-    /// Whether a `Stationary` answer (σ the uniform one: no heading known) gives the
-    /// epoch's course rather than the heading the history holds: only for a declared
-    /// [`Platform::Robot`], which turns in place at its stops so that what it held is
-    /// stale, and only at a `speed` (m/s) over [`ROBOT_COURSE_NOISE_K`] times its
-    /// receiver's noise (`acc`, the sAcc, NaN when absent; else the noise measured at
-    /// rest), where a creeping robot's velocity points the way it moves. A car's held
-    /// heading stays: it is right however the car creeps or reverses.
-    #[inline]
-    pub fn stationary_course(&self, mp: &ModeParams, speed: f32, acc: f32) -> bool {
-        let noise = if acc.is_finite() {
-            acc
-        } else {
-            self.noise / mp.quantile_factor()
-        };
-        self.platform == Platform::Robot && speed > ROBOT_COURSE_NOISE_K * noise
     }
 }
