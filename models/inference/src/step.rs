@@ -234,11 +234,13 @@ pub fn reported_sigma(
 }
 
 /// Whether `st`'s vehicle has moved without showing which way it faces
-/// ([`StepState::sense_known`]); a robot (declared) has no reverse mode: it drives
-/// the way it faces.
+/// ([`StepState::sense_known`]; a robot, declared, drives the way it faces at first),
+/// or left its last stand against its held heading as a platform
+/// ([`StepState::sense_doubt`]: backing up or turned in place, either may be).
 #[inline]
 fn sense_unknown(st: &StepState) -> bool {
-    st.moved && !st.sense_known && st.vehicle.platform != crate::modes::Platform::Robot
+    (st.moved && !st.sense_known && st.vehicle.platform != crate::modes::Platform::Robot)
+        || st.sense_doubt
 }
 
 #[cfg(test)]
@@ -278,6 +280,29 @@ mod tests {
             (led - plain).abs() < 1e-3,
             "led: {led}° against the unled {plain}°"
         );
+    }
+
+    /// A platform in doubt of its sense (it left a stand against its held heading)
+    /// reports at least `SENSE_SIGMA_DEG`, however small its filter's σ: backing up
+    /// answered as driving forward is off by a half turn.
+    #[test]
+    fn a_platform_in_doubt_of_its_sense_covers_the_half_turn() {
+        let maps = SigmaMaps::default();
+        let mut st = StepState::fresh(crate::modes::Platform::Robot);
+        (st.moved, st.t_still) = (true, 0.0);
+        let step = Step {
+            k: 0.5,
+            moving: true,
+            hold: false,
+            sigma_v: 0.1,
+            ..Step::holding(0.0, 0.0, 0.0, 0.5, true)
+        };
+        let log_sigma = 5f32.to_radians().ln();
+        let sure = reported_sigma(&step, log_sigma, 0.0, &st, &maps);
+        st.sense_doubt = true;
+        let doubt = reported_sigma(&step, log_sigma, 0.0, &st, &maps);
+        assert!(sure < 10.0, "sure of its sense: {sure}°");
+        assert_eq!(doubt, crate::modes::SENSE_SIGMA_DEG, "in doubt");
     }
 
     /// A car reversing at 1 m/s (the lever's whole `k_max·L` = 0.2) reports at least

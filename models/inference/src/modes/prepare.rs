@@ -1,6 +1,7 @@
 //! The first half of an epoch: time, noise, the glitch gate and the direction rules,
 //! ending in the step the network corrects.
 
+use super::commit::SENSE_DOUBT_STAND_S;
 use super::noise::{cap2, driving_variance, measured, measurement, still_variance, update_noise};
 use super::params::ModeParams;
 use super::release::{glitch, keep_or_restore_held, track_motion, RELEASE_SPEED};
@@ -112,6 +113,12 @@ fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32,
         st.reverse = !st.reverse;
         st.t_mode = 0.0;
     }
+    // A platform leaving a short stand against its held heading may be backing up;
+    // along it, or after a stand long enough to turn in place, it drives the way it
+    // faces.
+    if st.t_still > 0.0 {
+        st.sense_doubt = !st.vehicle.car && against && st.t_still <= SENSE_DOUBT_STAND_S;
+    }
     let fast = speed > mp.escape_speed && st.prev_speed > 0.7 * mp.escape_speed && dt <= 2.0;
     (st.t_fast, st.n_fast) = if speed > mp.fast_speed {
         (st.t_fast + dt, st.n_fast.saturating_add(1))
@@ -124,6 +131,7 @@ fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32,
         st.psi += pi;
     }
     st.sense_known |= fast;
+    st.sense_doubt &= !fast;
     // Several epochs as well as seconds: a run of glitches under poor sky lasts a few
     // epochs and must not make a slow platform a car.
     if st.t_fast >= mp.fast_secs

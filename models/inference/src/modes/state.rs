@@ -107,6 +107,16 @@ pub struct StepState {
     /// [`SENSE_RUN_M`]: crate::modes::SENSE_RUN_M
     /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
     pub sense_known: bool,
+    /// Whether a vehicle not known to be a car left its last stand against the heading
+    /// it held there (further off than `flip_stop_deg`), and has not since driven
+    /// [`SENSE_RUN_M`] or faster than `escape_speed`: it may be backing up, or driving
+    /// off after turning in place, and its velocity cannot say which. A car in that
+    /// case flips its mode; a platform answers its course, and its σ covers the half
+    /// turn ([`SENSE_SIGMA_DEG`]) as for a history whose sense is unknown.
+    ///
+    /// [`SENSE_RUN_M`]: crate::modes::SENSE_RUN_M
+    /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
+    pub sense_doubt: bool,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -143,6 +153,7 @@ impl StepState {
         driving: false,
         run_m: 0.0,
         sense_known: false,
+        sense_doubt: false,
         vehicle: Vehicle::UNKNOWN,
     };
 
