@@ -541,6 +541,7 @@ impl StreamPredictor {
             unreachable!("a temporal engine has a temporal kind")
         };
         head.apply(&h.ring, h.newest, h.filled, &mut self.y[..3]);
+        let prev_v = h.state.prev_v;
         let d = commit(&mut h.state, &pending.step, &self.y[..3], pending.dt);
         if h.state.moving_now() {
             // What a stop starting after this epoch holds.
@@ -558,7 +559,16 @@ impl StreamPredictor {
         let fed = pending.had_prior && d.gain > 0.0;
         // The filter runs on courses; the answer is the body's heading.
         let psi = d.psi + modes.boresight_deg.to_radians();
-        self.finish(psi, std, pending.had_prior, standing, fed, pending.epoch)
+        let mut p = self.finish(psi, std, pending.had_prior, standing, fed, pending.epoch);
+        let [vn, ve, _, acc] = pending.epoch;
+        if p.status == Status::Stationary
+            && h.state
+                .vehicle
+                .stationary_course(modes, [vn, ve], prev_v, acc)
+        {
+            p.heading_deg = degrees_in_turn(ve.atan2(vn) + modes.boresight_deg.to_radians());
+        }
+        p
     }
 
     /// The filter step from outputs `self.y`: heading (radians) and reported σ
@@ -598,8 +608,7 @@ impl StreamPredictor {
         epoch: [f32; 4],
     ) -> Prediction {
         let [vn, ve, speed, acc] = epoch;
-        let deg = psi.to_degrees().rem_euclid(360.0);
-        let deg = if deg >= 360.0 { 0.0 } else { deg };
+        let deg = degrees_in_turn(psi);
         let held_speed = if acc.is_finite() {
             self.policy.stationary_speed.max(3.0 * acc)
         } else {
@@ -623,6 +632,17 @@ impl StreamPredictor {
             speed,
             status,
         }
+    }
+}
+
+/// An angle (radians) in degrees in [0, 360).
+#[inline]
+fn degrees_in_turn(psi: f32) -> f32 {
+    let deg = psi.to_degrees().rem_euclid(360.0);
+    if deg >= 360.0 {
+        0.0
+    } else {
+        deg
     }
 }
 
@@ -1366,6 +1386,50 @@ mod tests {
             .iter()
             .filter(|p| p.status == Status::Held && p.speed >= 1.0);
         (held.count() as f64 * rx.dt, answers)
+    }
+
+    /// A declared robot's `Stationary` answers (σ the uniform one) give each epoch's
+    /// course once it creeps steadily over twice its sAcc: from a cold start it creeps
+    /// at 0.4 m/s while the start rule still calls it standing, turning 3° an epoch. At
+    /// rest it answers the heading it holds, and so does a car creeping alike, and a
+    /// robot whose antenna's velocity turns 60° an epoch (a spin in place, not a course).
+    #[test]
+    fn a_stationary_robot_answers_its_steady_course_over_its_noise() {
+        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
+        let cases = [
+            (Platform::Robot, 3.0),
+            (Platform::Car, 3.0),
+            (Platform::Robot, 60.0),
+        ];
+        for (platform, turn) in cases {
+            let mut sp = StreamPredictor::new(model.clone()).with_platform(Some(platform));
+            let mut h = sp.history();
+            let mut rx = Ublox::new(5.0, 3);
+            let rest: Vec<_> = (0..10)
+                .map(|_| sp.predict(&mut h, &rx.epoch([0.0, 0.0])))
+                .collect();
+            let creep: Vec<_> = (0..15)
+                .map(|k| sp.predict(&mut h, &rx.epoch([0.4, 100.0 + turn * k as f32])))
+                .collect();
+            let still: Vec<_> = creep
+                .iter()
+                .filter(|p| p.status == Status::Stationary)
+                .collect();
+            let what = format!("{platform} turning {turn}°: {rest:?} {creep:?}");
+            assert!(still.len() >= 5, "{what}");
+            let held = rest[0].heading_deg;
+            assert!(rest.iter().all(|p| p.heading_deg == held), "{what}");
+            // The first epoch has no steady predecessor.
+            assert_eq!(still[0].heading_deg, held, "{what}");
+            for p in &still[1..] {
+                let target = if platform == Platform::Robot && turn < 30.0 {
+                    p.atan2_deg
+                } else {
+                    held
+                };
+                assert!((p.heading_deg - target).abs() < 1e-3, "{what}");
+            }
+        }
     }
 
     /// A parked car leaving at 1 Hz is answered from its second epoch of driving on:

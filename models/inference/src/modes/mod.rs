@@ -92,6 +92,7 @@ pub use start::START_S;
 pub use state::{HeldHeading, MotionRun, Step, StepState};
 pub use vehicle::{
     Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED, HOLD_MIN_ZEROS, HOLD_ZEROS_PER_CREEP,
+    ROBOT_COURSE_NOISE_K,
 };
 
 #[cfg(test)]
