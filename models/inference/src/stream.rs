@@ -48,7 +48,7 @@ use std::sync::Arc;
 
 use crate::head::{filter_step, heading_deg, scale_input, KalmanBase, MAX_STD_DEG};
 use crate::model::{Engine, Model};
-use crate::modes::{commit, prepare, Step};
+use crate::modes::{commit, prepare, stationary_course, Step};
 use crate::net::Scratch;
 use crate::prediction::{finish_epoch, Prediction, Status, StatusPolicy};
 use crate::step::log_sigma_cap;
@@ -562,9 +562,7 @@ impl StreamPredictor {
         let mut p = self.finish(psi, std, pending.had_prior, standing, fed, pending.epoch);
         let [vn, ve, _, acc] = pending.epoch;
         if p.status == Status::Stationary
-            && h.state
-                .vehicle
-                .stationary_course(modes, [vn, ve], prev_v, acc)
+            && stationary_course(modes, &h.state.vehicle, [vn, ve], prev_v, acc)
         {
             p.heading_deg = degrees_in_turn(ve.atan2(vn) + modes.boresight_deg.to_radians());
         }

@@ -75,10 +75,11 @@ pub use commit::{
 pub(crate) use noise::random_walk_variance;
 pub use params::{ModeParams, LEVER_M};
 pub use prepare::prepare;
+pub use release::stationary_course;
 pub use release::{
     BRAKE_MAX, RELEASE_CONT_ACC_K, RELEASE_CONT_NOISE_K, RELEASE_COURSE_DEG, RELEASE_EPOCHS,
     RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP, RELEASE_NOISE_CAP_LOW_RATE,
-    RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED, UNSURE_HELD_DEG,
+    RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED, ROBOT_COURSE_NOISE_K, UNSURE_HELD_DEG,
 };
 pub use scatter::{
     extrapolation_share, SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED,
@@ -92,7 +93,6 @@ pub use start::START_S;
 pub use state::{HeldHeading, MotionRun, Step, StepState};
 pub use vehicle::{
     Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED, HOLD_MIN_ZEROS, HOLD_ZEROS_PER_CREEP,
-    ROBOT_COURSE_NOISE_K,
 };
 
 #[cfg(test)]

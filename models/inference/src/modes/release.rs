@@ -4,7 +4,7 @@
 
 use super::params::ModeParams;
 use super::state::{HeldHeading, MotionRun, StepState};
-use super::vehicle::Platform;
+use super::vehicle::{Platform, Vehicle};
 use crate::head::wrap_rad;
 
 /// Speed (m/s) from which an epoch is plain motion for the release rule
@@ -99,6 +99,15 @@ pub const RELEASE_COURSE_DEG: f32 = 30.0;
 /// one such epoch at 4–5 m/s started a stand that the gate then kept for over a second
 /// of driving (a standing car leaves rest only as fast as `a_max` allows).
 pub const BRAKE_MAX: f32 = 10.0;
+
+/// Times its receiver's noise (the reported sAcc, else the σ measured at rest) a
+/// declared robot's speed must exceed, this epoch and the one before on a steady
+/// course, for a `Stationary` answer to point along its course
+/// ([`stationary_course`]). At true rest the course is noise and the held
+/// heading the better guess (answering the course at any speed made simulated RTKLIB
+/// robots worse than holding); over this bar every robot section of
+/// `reports/unmet.md` got better with `--platform robot`.
+pub const ROBOT_COURSE_NOISE_K: f32 = 2.0;
 
 /// What an epoch did to the run of plain motion ([`StepState::motion`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -397,4 +406,42 @@ pub(super) fn track_motion(
         (st.motion, st.motion_alt, st.motion_skips) = (alt, MotionRun::NONE, 0);
         RunStep::New
     }
+}
+
+/// Whether a `Stationary` answer (σ the uniform one: no heading known) of `vehicle`
+/// gives this epoch's course (velocity `v`, m/s north and east) rather than the
+/// heading the history holds. Only for a declared [`Platform::Robot`]: it turns in
+/// place at its stops, so what it holds is stale, while a car's held heading is right
+/// however it creeps or reverses. Only when `v` and the velocity the epoch before used
+/// (`prev_v`) are both over [`ROBOT_COURSE_NOISE_K`] times the receiver's noise
+/// (`acc`, the sAcc, NaN when absent; else the noise measured at rest) and point
+/// within [`RELEASE_COURSE_DEG`] of each other: a creeping robot's velocity keeps
+/// its direction, a noisy receiver at rest before its noise is measured does not
+/// for long, and neither does the velocity a spin in place gives an antenna off
+/// its axis. Without that steadiness, a cold start on a noisy NMEA receiver and a
+/// robot spinning at 1 Hz were answered sideways.
+#[inline]
+pub fn stationary_course(
+    mp: &ModeParams,
+    vehicle: &Vehicle,
+    v: [f32; 2],
+    prev_v: [f32; 2],
+    acc: f32,
+) -> bool {
+    if vehicle.platform != Platform::Robot {
+        return false;
+    }
+    let noise = if acc.is_finite() {
+        acc
+    } else {
+        vehicle.noise / mp.quantile_factor()
+    };
+    let bar = ROBOT_COURSE_NOISE_K * noise;
+    // The angle between the two velocities from their dot and cross products.
+    let dot = prev_v[0] * v[0] + prev_v[1] * v[1];
+    let cross = prev_v[0] * v[1] - prev_v[1] * v[0];
+    v[0].hypot(v[1]) > bar
+        && prev_v[0].hypot(prev_v[1]) > bar
+        && dot > 0.0
+        && cross.abs() <= dot * RELEASE_COURSE_DEG.to_radians().tan()
 }

@@ -3,9 +3,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::params::ModeParams;
-use super::release::RELEASE_COURSE_DEG;
-
 /// A receiver that holds static seldom reports a speed above zero and below this
 /// (m/s): its first moving epoch after a stand jumps past it.
 pub const HOLD_CREEP_SPEED: f32 = 0.25;
@@ -23,15 +20,6 @@ pub const HOLD_MIN_ZEROS: u32 = 5;
 
 /// Fewest epochs above `fast_speed` that make a vehicle a car.
 pub const FAST_EPOCHS: u16 = 5;
-
-/// Times its receiver's noise (the reported sAcc, else the σ measured at rest) a
-/// declared robot's speed must exceed, this epoch and the one before on a steady
-/// course, for a `Stationary` answer to point along its course
-/// ([`Vehicle::stationary_course`]). At true rest the course is noise and the held
-/// heading the better guess (answering the course at any speed made simulated RTKLIB
-/// robots worse than holding); over this bar every robot section of
-/// `reports/unmet.md` got better with `--platform robot`.
-pub const ROBOT_COURSE_NOISE_K: f32 = 2.0;
 
 /// What carries the receiver: whether the mode filter may take it for a car, and
 /// whether it may turn in place. Set per source; `Auto` decides online.
@@ -125,44 +113,6 @@ impl Vehicle {
         } else if speed < HOLD_CREEP_SPEED {
             self.creeps = self.creeps.saturating_add(1);
         }
-    }
-
-    /// Whether a `Stationary` answer (σ the uniform one: no heading known) gives this
-    /// epoch's course (velocity `v`, m/s north and east) rather than the heading the
-    /// history holds. Only for a declared [`Platform::Robot`]: it turns in place at its
-    /// stops, so what it holds is stale, while a car's held heading is right however it
-    /// creeps or reverses. Only when `v` and the velocity the epoch before used
-    /// (`prev_v`) are both over [`ROBOT_COURSE_NOISE_K`] times the receiver's noise
-    /// (`acc`, the sAcc, NaN when absent; else the noise measured at rest) and point
-    /// within `RELEASE_COURSE_DEG` of each other: a creeping robot's velocity keeps
-    /// its direction, a noisy receiver at rest before its noise is measured does not
-    /// for long, and neither does the velocity a spin in place gives an antenna off
-    /// its axis. Without that steadiness, a cold start on a noisy NMEA receiver and a
-    /// robot spinning at 1 Hz were answered sideways.
-    #[inline]
-    pub fn stationary_course(
-        &self,
-        mp: &ModeParams,
-        v: [f32; 2],
-        prev_v: [f32; 2],
-        acc: f32,
-    ) -> bool {
-        if self.platform != Platform::Robot {
-            return false;
-        }
-        let noise = if acc.is_finite() {
-            acc
-        } else {
-            self.noise / mp.quantile_factor()
-        };
-        let bar = ROBOT_COURSE_NOISE_K * noise;
-        // The angle between the two velocities from their dot and cross products.
-        let dot = prev_v[0] * v[0] + prev_v[1] * v[1];
-        let cross = prev_v[0] * v[1] - prev_v[1] * v[0];
-        v[0].hypot(v[1]) > bar
-            && prev_v[0].hypot(prev_v[1]) > bar
-            && dot > 0.0
-            && cross.abs() <= dot * RELEASE_COURSE_DEG.to_radians().tan()
     }
 
     /// Whether the receiver holds static: it has reported exactly zero at rest
