@@ -109,6 +109,14 @@ pub const BRAKE_MAX: f32 = 10.0;
 /// `reports/unmet.md` got better with `--platform robot`.
 pub const ROBOT_COURSE_NOISE_K: f32 = 2.0;
 
+/// Whether velocities `a` and `b` point within [`RELEASE_COURSE_DEG`] of each other,
+/// from their dot and cross products (no arctangent on the streaming path).
+#[inline]
+fn same_course(a: [f32; 2], b: [f32; 2]) -> bool {
+    let (dot, cross) = (a[0] * b[0] + a[1] * b[1], a[0] * b[1] - a[1] * b[0]);
+    dot > 0.0 && cross.abs() <= dot * RELEASE_COURSE_DEG.to_radians().tan()
+}
+
 /// What an epoch did to the run of plain motion ([`StepState::motion`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum RunStep {
@@ -136,13 +144,9 @@ impl MotionRun {
     /// the run's last epoch (glitch bursts come back to back with other sizes).
     fn steady(&self, mp: &ModeParams, v: [f32; 2]) -> bool {
         let [pn, pe] = self.v;
-        // The angle between the two velocities within RELEASE_COURSE_DEG, from their dot
-        // and cross products (no arctangent on the streaming path).
-        let (dot, cross) = (pn * v[0] + pe * v[1], pn * v[1] - pe * v[0]);
         self.n > 0
             && self.since <= 2.0
-            && dot > 0.0
-            && cross.abs() <= dot * RELEASE_COURSE_DEG.to_radians().tan()
+            && same_course(self.v, v)
             && (v[0] - pn).hypot(v[1] - pe) <= mp.a_max * self.since + 0.3
     }
 
@@ -437,11 +441,5 @@ pub fn stationary_course(
         vehicle.noise / mp.quantile_factor()
     };
     let bar = ROBOT_COURSE_NOISE_K * noise;
-    // The angle between the two velocities from their dot and cross products.
-    let dot = prev_v[0] * v[0] + prev_v[1] * v[1];
-    let cross = prev_v[0] * v[1] - prev_v[1] * v[0];
-    v[0].hypot(v[1]) > bar
-        && prev_v[0].hypot(prev_v[1]) > bar
-        && dot > 0.0
-        && cross.abs() <= dot * RELEASE_COURSE_DEG.to_radians().tan()
+    v[0].hypot(v[1]) > bar && prev_v[0].hypot(prev_v[1]) > bar && same_course(prev_v, v)
 }
