@@ -34,9 +34,11 @@
 //!   yaw rate times its lag. Such a vehicle, car or not, and any vehicle not known to
 //!   be a car is answered ahead of the filter's heading by `atan(ω·τ)`: ω the yaw rate
 //!   smoothed over `LEAD_YAW_TAU_S` and shrunk by its own scatter (a noisy course is
-//!   not differentiated), τ the model's `lag_s`, or `hold_lag_s` for such a receiver.
-//!   The filter's own state follows the course; only the answer leads (the consumer
-//!   rows of models/reports/unmet.md).
+//!   not differentiated), τ the model's `lag_s`, or `hold_lag_s` for such a receiver,
+//!   or `no_acc_lag_s` for a vehicle not known to be a car whose receiver gives no
+//!   accuracy (NMEA: maybe a filter's output). The filter's own state follows the
+//!   course; only the answer leads (the consumer and NMEA robot rows of
+//!   models/reports/unmet.md).
 //! * **A standing car stays put.** Its epochs within the noise (under 3σ, or under the
 //!   release bar on a receiver that holds static, whose noise is a guess) feed nothing
 //!   (no gain, no steering noise); it leaves rest only on a velocity reachable from rest since
@@ -287,17 +289,15 @@ mod tests {
     /// One 5 Hz epoch of a receiver without sAcc along `course_deg` at `speed` (exact
     /// zeros at 0), filter alone: the answer and the course (radians).
     fn no_acc(st: &mut StepState, speed: f32, course_deg: f32) -> (Decision, f32) {
+        epoch_acc(st, speed, course_deg, f32::NAN)
+    }
+
+    /// One 5 Hz epoch along `course_deg` at `speed` with sAcc `acc` (NaN: none),
+    /// filter alone: the answer and the course (radians).
+    fn epoch_acc(st: &mut StepState, speed: f32, course_deg: f32, acc: f32) -> (Decision, f32) {
         let mp = ModeParams::default();
         let c = course_deg.to_radians();
-        let step = prepare(
-            &mp,
-            0.5,
-            st,
-            speed * c.cos(),
-            speed * c.sin(),
-            f32::NAN,
-            0.2,
-        );
+        let step = prepare(&mp, 0.5, st, speed * c.cos(), speed * c.sin(), acc, 0.2);
         (commit(st, &step, &[0.0, 0.0, 0.0], 0.2), c)
     }
 
@@ -309,14 +309,19 @@ mod tests {
     }
 
     /// A vehicle on `platform` stands (at `rest` m/s), drives straight, then turns at
-    /// 10°/s: how far (degrees) the last answer is ahead of the last course.
-    fn lead_in_turn(platform: Platform, rest: f32) -> f32 {
+    /// 10°/s, its receiver reporting sAcc `acc` (NaN: none): how far (degrees) the last
+    /// answer is ahead of the last course.
+    fn lead_in_turn(platform: Platform, rest: f32, acc: f32) -> f32 {
         let mut st = StepState::fresh(platform);
-        run(&mut st, 10, rest, 0.0);
-        run(&mut st, 10, 1.5, 0.0);
+        for _ in 0..10 {
+            epoch_acc(&mut st, rest, 0.0, acc);
+        }
+        for _ in 0..10 {
+            epoch_acc(&mut st, 1.5, 0.0, acc);
+        }
         let mut last = (0.0, 0.0);
         for k in 1..=25 {
-            let (d, c) = no_acc(&mut st, 1.5, 2.0 * k as f32);
+            let (d, c) = epoch_acc(&mut st, 1.5, 2.0 * k as f32, acc);
             last = (d.psi, c);
         }
         wrap_rad(last.0 - last.1).to_degrees()
@@ -324,15 +329,22 @@ mod tests {
 
     /// A receiver that holds static (exact zeros at rest, no creeping speeds) runs a
     /// navigation filter whose course lags a turn: a robot's answer leads its course by
-    /// the filtered yaw rate times `hold_lag_s` (10°/s × 0.5 s ≈ 5°). A receiver that
-    /// shows its noise at rest is answered along the course; a car's answer trails it
-    /// by its antenna's lever arm (next test).
+    /// the filtered yaw rate times `hold_lag_s` (10°/s × 0.5 s ≈ 5°). One that shows its
+    /// noise at rest and gives no sAcc (NMEA) may filter too: led by `no_acc_lag_s`,
+    /// half as far. One with an sAcc (raw Doppler, which does not lag) is answered
+    /// along the course; a car's answer trails it by its antenna's lever arm (next
+    /// test).
     #[test]
     fn a_static_hold_receivers_course_is_led_through_a_turn() {
-        let lead = lead_in_turn(Platform::Robot, 0.0);
+        let lead = lead_in_turn(Platform::Robot, 0.0, f32::NAN);
         assert!((3.0..6.0).contains(&lead), "static hold: {lead}°");
-        let lead = lead_in_turn(Platform::Robot, 0.1);
-        assert!(lead.abs() < 1.0, "creeping at rest: {lead}°");
+        let nmea = lead_in_turn(Platform::Robot, 0.1, f32::NAN);
+        assert!(
+            (1.0..lead * 0.6).contains(&nmea),
+            "no sAcc, creeping at rest: {nmea}°"
+        );
+        let raw = lead_in_turn(Platform::Robot, 0.1, 0.1);
+        assert!(raw.abs() < 1.0, "sAcc, creeping at rest: {raw}°");
         let mut v = Vehicle::UNKNOWN;
         v.observe_hold(0.0);
         assert!(!v.holds_static(), "one zero is a bad fix, not a hold");
@@ -370,7 +382,7 @@ mod tests {
         let (lever_s, _) = ModeParams::default().lever(&car, 1.5);
         assert!(lever_s > 0.0 && lever_s <= LEVER_M / 1.5);
         let want = (10f32.to_radians() * lever_s).atan().to_degrees();
-        let lead = lead_in_turn(Platform::Car, 0.01);
+        let lead = lead_in_turn(Platform::Car, 0.01, f32::NAN);
         // The yaw rate is still growing (smoothed over 2 s) and shrunk by its scatter.
         let taken = 0.6 * want..want + 1.0;
         assert!(taken.contains(&-lead), "forward: {lead}°, want −{want}°");
@@ -402,8 +414,8 @@ mod tests {
     /// of the answer on a receiver that shows its noise at rest.
     #[test]
     fn a_static_hold_cars_answer_is_led_too() {
-        let held = lead_in_turn(Platform::Car, 0.0);
-        let noisy = lead_in_turn(Platform::Car, 0.01);
+        let held = lead_in_turn(Platform::Car, 0.0, f32::NAN);
+        let noisy = lead_in_turn(Platform::Car, 0.01, f32::NAN);
         let lag = (10f32.to_radians() * ModeParams::default().hold_lag_s)
             .atan()
             .to_degrees();

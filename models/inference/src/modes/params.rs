@@ -76,6 +76,16 @@ pub struct ModeParams {
     ///
     /// [`Vehicle::holds_static`]: crate::modes::Vehicle::holds_static
     pub hold_lag_s: f32,
+    /// The lag (s) assumed, when larger than `lag_s`, for a vehicle not known to be a
+    /// car whose receiver reports no speed accuracy and shows its noise at rest (an
+    /// NMEA unit's course and speed): such a course is often the receiver's navigation
+    /// filter's output and trails a turn, though less surely than a static hold's, so
+    /// the lead is half `hold_lag_s`. Robots turn while driving slowly, where that trail
+    /// is most of the course's error (the NMEA robot rows of
+    /// models/reports/unmet.md). Receivers with an sAcc are not led: raw Doppler
+    /// velocity (RTKLIB) does not lag, and a lead there costs what it gains on the rest.
+    /// Own-log training fits it with `lag_s`.
+    pub no_acc_lag_s: f32,
     /// How far (m) a car's antenna sits ahead of its rear axle, the point of the car
     /// with no sideways velocity: turning at yaw rate ω at speed `v`, the antenna's
     /// course leads the heading by `atan(ω·L/v)` (trails it reversing), and a car's
@@ -131,6 +141,7 @@ impl Default for ModeParams {
             axis_secs: 2.0,
             lag_s: 0.0,
             hold_lag_s: 0.5,
+            no_acc_lag_s: 0.25,
             lever_m: LEVER_M,
             boresight_deg: 0.0,
             platform: Platform::Auto,
@@ -139,19 +150,22 @@ impl Default for ModeParams {
 }
 
 impl ModeParams {
-    /// The lag (s) the answered heading leads a vehicle's course by. A receiver that
-    /// holds static is a navigation filter's output, which lags: `hold_lag_s`, or
-    /// `lag_s` if larger, whatever carries it. Otherwise `lag_s` for a vehicle not known
-    /// to be a car, and nothing for a car (its results are tuned on receivers that
-    /// show no sign of their lag).
+    /// The lag (s) the answered heading leads a vehicle's course by, its receiver
+    /// reporting a speed accuracy (`has_acc`) or not. A receiver that holds static is a
+    /// navigation filter's output, which lags: `hold_lag_s`, or `lag_s` if larger,
+    /// whatever carries it. Otherwise nothing for a car (its results are tuned on
+    /// receivers that show no sign of their lag), and `lag_s` for another vehicle, or
+    /// `no_acc_lag_s` if larger when its receiver gives no accuracy.
     #[inline]
-    pub(super) fn lead_s(&self, v: &Vehicle) -> f32 {
+    pub(super) fn lead_s(&self, v: &Vehicle, has_acc: bool) -> f32 {
         if v.holds_static() {
             self.lag_s.max(self.hold_lag_s)
         } else if v.car {
             0.0
-        } else {
+        } else if has_acc {
             self.lag_s
+        } else {
+            self.lag_s.max(self.no_acc_lag_s)
         }
     }
 

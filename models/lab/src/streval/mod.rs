@@ -427,13 +427,19 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
     })
 }
 
-/// 10th, 50th and 90th percentile of `v` (nearest rank); `None` under [`MIN_DRIVES`].
+/// 10th, 50th and 90th percentile of `v`, linear between ranks (numpy's default: the
+/// median of an even count is the mean of the middle two); `None` under
+/// [`MIN_DRIVES`].
 fn percentiles(mut v: Vec<f64>) -> Option<[f64; 3]> {
     if v.len() < MIN_DRIVES {
         return None;
     }
     v.sort_by(f64::total_cmp);
-    let at = |q: f64| v[((q * v.len() as f64) as usize).min(v.len() - 1)];
+    let at = |q: f64| {
+        let h = q * (v.len() - 1) as f64;
+        let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
+        v[lo] + (h - lo as f64) * (v[hi] - v[lo])
+    };
     Some([at(0.1), at(0.5), at(0.9)])
 }
 
@@ -719,7 +725,8 @@ mod tests {
         let m = memory(&tracks, &a, &vec![0.0; n]).expect("σ and status");
         assert_eq!(m.drives, 10);
         let p = m.drives_within_1sigma.expect("ten drives");
-        for (got, want) in p.iter().zip([0.2, 0.6, 1.0]) {
+        // Shares 0.1, 0.2, …, 1.0: ranks 0.9, 4.5 and 8.1 of 0–9.
+        for (got, want) in p.iter().zip([0.19, 0.55, 0.91]) {
             assert!((got - want).abs() < 1e-9, "{p:?}");
         }
         assert_eq!(m.drives_within_2sigma, Some([1.0; 3]));
