@@ -43,17 +43,6 @@ pub fn reverse_logit(rule_reverse: bool, y: f32) -> f32 {
 /// ([`StepState::sense_known`]): a back-out of a parking space is a car length or two.
 pub const SENSE_RUN_M: f32 = 10.0;
 
-/// Longest stand (s) whose departure against the held heading leaves a platform in
-/// doubt of its sense ([`StepState::sense_doubt`]). A half turn in place takes longer
-/// (3 s at 60 °/s, the fastest spin of the simulator's robots), so after such a short
-/// stand a departure the other way is as likely backing up (or leaving forward after
-/// backing up) as anything. After longer stands most such departures follow a turn in
-/// place and drive forward: covering them too took the held-out platforms' median
-/// drive over 76% within 1σ (models/reports/ghnet-temporal.md).
-///
-/// [`StepState::sense_doubt`]: crate::modes::StepState::sense_doubt
-pub const SENSE_DOUBT_STAND_S: f32 = 2.0;
-
 /// The least σ (degrees) of an answer while the sense of travel is unknown: two σ
 /// reach the half turn a back-out answered as forward is off by. A misread is a jump,
 /// not a spread, so no σ describes it; this one keeps it inside 2σ (the car

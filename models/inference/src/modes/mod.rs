@@ -13,9 +13,8 @@
 //!   (above `escape_speed`, the mode ends and the heading turns by 180°), and a vehicle
 //!   that has not yet shown car-like speed has no reverse mode at all (next point), nor
 //!   does the network's reverse correction give it one: a platform that turned in place
-//!   at a stop and drives off the other way is driving forward. After a stop too short
-//!   to turn in place, such a departure may be backing up, and its σ says so
-//!   ([`StepState::sense_doubt`]).
+//!   at a stop and drives off the other way is driving forward. Such a departure may
+//!   also be backing up, and its σ says so ([`StepState::sense_doubt`]).
 //! * **Cars do not turn in place; platforms do.** A vehicle counts as a car once it has
 //!   driven above `fast_speed` for `fast_secs` and `FAST_EPOCHS` epochs (kept across
 //!   fix gaps: it is the same vehicle). Until then it is treated as a platform that
@@ -71,8 +70,8 @@ mod state;
 mod vehicle;
 
 pub use commit::{
-    commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR,
-    SENSE_DOUBT_STAND_S, SENSE_RUN_M, SENSE_SIGMA_DEG, YAW_TAU_S,
+    commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR, SENSE_RUN_M,
+    SENSE_SIGMA_DEG, YAW_TAU_S,
 };
 pub(crate) use noise::random_walk_variance;
 pub use params::{ModeParams, LEVER_M};
@@ -192,18 +191,19 @@ mod tests {
         }
     }
 
-    /// A robot that drove north, stood a moment and leaves against the heading it held
-    /// (south, or east: over `flip_stop_deg` off) may be backing up, so it doubts its
-    /// sense until it has driven `SENSE_RUN_M` without a stand. One leaving along its
-    /// heading, or after a stand long enough to turn in place, drives forward; a car
-    /// leaving against it reverses (its mode knows). None of those doubt.
+    /// A robot that drove north, stood and leaves against the heading it held (south,
+    /// or east: over `flip_stop_deg` off) may be backing up or may have turned in
+    /// place, so it doubts its sense until it has driven `SENSE_RUN_M` without a stand,
+    /// however long it stood. One leaving along its heading drives forward; a car
+    /// leaving against it reverses (its mode knows). Neither doubts.
     #[test]
-    fn a_platform_leaving_a_short_stand_against_its_heading_doubts_its_sense() {
+    fn a_platform_leaving_a_stand_against_its_heading_doubts_its_sense() {
         let cases = [
             (Platform::Robot, 2, 180.0, true),
             (Platform::Robot, 1, 100.0, true),
+            (Platform::Robot, 30, 180.0, true),
             (Platform::Robot, 2, 20.0, false),
-            (Platform::Robot, 5, 180.0, false),
+            (Platform::Robot, 30, 20.0, false),
             (Platform::Car, 2, 180.0, false),
         ];
         for (platform, stand, course, doubt) in cases {

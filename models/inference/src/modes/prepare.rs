@@ -1,7 +1,6 @@
 //! The first half of an epoch: time, noise, the glitch gate and the direction rules,
 //! ending in the step the network corrects.
 
-use super::commit::SENSE_DOUBT_STAND_S;
 use super::noise::{cap2, driving_variance, measured, measurement, still_variance, update_noise};
 use super::params::ModeParams;
 use super::release::{glitch, keep_or_restore_held, track_motion, RELEASE_SPEED};
@@ -113,11 +112,11 @@ fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32,
         st.reverse = !st.reverse;
         st.t_mode = 0.0;
     }
-    // A platform leaving a short stand against its held heading may be backing up;
-    // along it, or after a stand long enough to turn in place, it drives the way it
-    // faces.
+    // A platform leaving a stand against its held heading may be backing up, or may
+    // have turned in place and drive forward: no course tells which. Along it, it
+    // drives the way it faces.
     if st.t_still > 0.0 {
-        st.sense_doubt = !st.vehicle.car && against && st.t_still <= SENSE_DOUBT_STAND_S;
+        st.sense_doubt = !st.vehicle.car && against;
     }
     let fast = speed > mp.escape_speed && st.prev_speed > 0.7 * mp.escape_speed && dt <= 2.0;
     (st.t_fast, st.n_fast) = if speed > mp.fast_speed {
