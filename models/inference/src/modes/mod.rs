@@ -76,11 +76,11 @@ pub use commit::{
 pub(crate) use noise::random_walk_variance;
 pub use params::{ModeParams, LEVER_M};
 pub use prepare::prepare;
-pub use release::stationary_course;
 pub use release::{
-    BRAKE_MAX, RELEASE_CONT_ACC_K, RELEASE_CONT_NOISE_K, RELEASE_COURSE_DEG, RELEASE_EPOCHS,
-    RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP, RELEASE_NOISE_CAP_LOW_RATE,
-    RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED, ROBOT_COURSE_NOISE_K, UNSURE_HELD_DEG,
+    stationary_course, BRAKE_MAX, RELEASE_CONT_ACC_K, RELEASE_CONT_NOISE_K, RELEASE_COURSE_DEG,
+    RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP,
+    RELEASE_NOISE_CAP_LOW_RATE, RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED,
+    ROBOT_COURSE_NOISE_K, UNSURE_HELD_DEG,
 };
 pub use scatter::{
     extrapolation_share, SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED,
@@ -303,8 +303,13 @@ mod tests {
 
     /// `n` epochs of `no_acc` at one speed and course.
     fn run(st: &mut StepState, n: usize, speed: f32, course_deg: f32) {
+        run_acc(st, n, speed, course_deg, f32::NAN);
+    }
+
+    /// `n` epochs of `epoch_acc` at one speed, course and sAcc.
+    fn run_acc(st: &mut StepState, n: usize, speed: f32, course_deg: f32, acc: f32) {
         for _ in 0..n {
-            no_acc(st, speed, course_deg);
+            epoch_acc(st, speed, course_deg, acc);
         }
     }
 
@@ -313,12 +318,8 @@ mod tests {
     /// answer is ahead of the last course.
     fn lead_in_turn(platform: Platform, rest: f32, acc: f32) -> f32 {
         let mut st = StepState::fresh(platform);
-        for _ in 0..10 {
-            epoch_acc(&mut st, rest, 0.0, acc);
-        }
-        for _ in 0..10 {
-            epoch_acc(&mut st, 1.5, 0.0, acc);
-        }
+        run_acc(&mut st, 10, rest, 0.0, acc);
+        run_acc(&mut st, 10, 1.5, 0.0, acc);
         let mut last = (0.0, 0.0);
         for k in 1..=25 {
             let (d, c) = epoch_acc(&mut st, 1.5, 2.0 * k as f32, acc);

@@ -207,6 +207,15 @@ impl ModeParams {
     pub(super) fn quantile_factor(&self) -> f32 {
         (-2.0 * (1.0 - self.noise_quantile).ln()).sqrt()
     }
+
+    /// The per-axis velocity σ (m/s) a vehicle's receiver has shown at rest: its
+    /// running low quantile of slow speeds ([`Vehicle::noise`]) over the
+    /// [`quantile_factor`](Self::quantile_factor). What the release rule and a declared
+    /// robot's `Stationary` course take for the receiver's noise.
+    #[inline]
+    pub(super) fn rest_noise(&self, v: &Vehicle) -> f32 {
+        v.noise / self.quantile_factor()
+    }
 }
 
 #[cfg(test)]

@@ -356,7 +356,7 @@ pub(super) fn track_motion(
     } else {
         RELEASE_NOISE_CAP
     };
-    let noise = (st.vehicle.noise / mp.quantile_factor()).min(cap);
+    let noise = mp.rest_noise(&st.vehicle).min(cap);
     let acc = if acc.is_finite() { acc } else { 0.0 };
     let floor = RELEASE_SPEED.max(3.0 * acc);
     let v = [vn, ve];
@@ -438,7 +438,7 @@ pub fn stationary_course(
     let noise = if acc.is_finite() {
         acc
     } else {
-        vehicle.noise / mp.quantile_factor()
+        mp.rest_noise(vehicle)
     };
     let bar = ROBOT_COURSE_NOISE_K * noise;
     v[0].hypot(v[1]) > bar && prev_v[0].hypot(prev_v[1]) > bar && same_course(prev_v, v)
