@@ -5,22 +5,24 @@
 # consumer, NMEA and u-blox receivers and of cars with u-blox, RTKLIB and consumer
 # receivers, two seeds each (none a recipe's or models/unmet.sh's), and the shared real
 # drive (1 Hz). Per log: MAE on the second half of atan2, kf, the shipped model and the
-# trained one; the platform the fit chose and what the written model changed; the wall
-# time of training on the half and on the whole log. Writes models/reports/ownlog.md
-# (under a minute on 2 cores).
+# trained one, and the shares within 1σ and 2σ of the last two; the platform the fit
+# chose and what the written model changed; the wall time of training on the half and
+# on the whole log. Writes models/reports/ownlog.md (under a minute on 2 cores).
 . "$(dirname "$0")/lab-env.sh"
 OUT=models/reports/ownlog.md
 REAL=../shared/data/real/car-nagoya-2024-1hz.csv
 DAY="--tracks 1 --track-min-s 1200 --track-max-s 1200 --rates-hz 5"
 
-# The `**all**` row's MAE columns (atan2, kf, model) of `ghnet eval` on $2 with model
-# $1, found by the first table's header (a receiver-course column comes and goes).
+# The `**all**` row's MAE columns (atan2, kf, model) and the model's shares within 1σ
+# and 2σ of `ghnet eval` on $2 with model $1, found by the first table's header (a
+# receiver-course column comes and goes).
 all_row() {
   $G eval --model "$1" --data "$2" | awk -F'|' '
     /MAE atan2/ && !a { for (i = 1; i <= NF; i++) {
         if ($i ~ /MAE atan2/) a = i; else if ($i ~ /MAE kf/) k = i;
-        else if ($i ~ /MAE / && $i !~ /receiver/) m = i } }
-    /\*\*all\*\*/ && !done { print $a + 0, $k + 0, $m + 0; done = 1 }'
+        else if ($i ~ /MAE / && $i !~ /receiver/) m = i;
+        else if ($i ~ /≤1σ/) s1 = i; else if ($i ~ /≤2σ/) s2 = i } }
+    /\*\*all\*\*/ && !done { print $a + 0, $k + 0, $m + 0, $s1 + 0, $s2 + 0; done = 1 }'
 }
 
 # Wall seconds of `ghnet train --data $1 --output $2`; its stderr goes to $3.
@@ -42,8 +44,8 @@ row() {
   local ts tf
   ts=$(train_s "$T/a.csv" "$T/m.safetensors" "$T/half.err")
   tf=$(train_s "$log" "$T/full.safetensors" "$T/full.err")
-  read -r atan kf def <<<"$(all_row ghnet-temporal "$T/b.csv")"
-  read -r _ _ mine <<<"$(all_row "$T/m.safetensors" "$T/b.csv")"
+  read -r atan kf def d1 d2 <<<"$(all_row ghnet-temporal "$T/b.csv")"
+  read -r _ _ mine m1 m2 <<<"$(all_row "$T/m.safetensors" "$T/b.csv")"
   # The platform the mode fit chose (and whether the log's car speeds ruled out a
   # robot), and the one the written model has (the fit's only if confirmed).
   local fit file
@@ -60,13 +62,19 @@ row() {
   if grep -q "not confirmed on the held-out part: writing .* unchanged" "$T/half.err"; then
     changed=""
   fi
-  if grep -q "training tracks" "$T/half.err" && ! grep -q "not confirmed" "$T/half.err"; then
+  if grep -q "training tracks" "$T/half.err" && ! grep -q "not confirmed on the held-out" "$T/half.err"; then
     changed="network and σ maps${changed:+; $changed}"
   fi
+  local scaled
+  scaled=$(sed -n 's/^σ maps of moving epochs scaled on the training part (\(.*\)): held-out.*within 1σ \/ 2σ$/\1/p' "$T/half.err")
+  if [ -n "$scaled" ]; then
+    changed="σ: $scaled${changed:+; $changed}"
+  fi
   awk -v name="$name" -v n="$n" -v a="$atan" -v k="$kf" -v d="$def" -v m="$mine" \
-    -v p="$platform" -v c="${changed:-none}" -v ts="$ts" -v tf="$tf" 'BEGIN {
-    printf "| %s | %d | %.2f | %.2f | %.2f | %.2f | %.1f | %+.1f | %s | %s | %s | %s |\n",
-      name, n, a, k, d, m, 100 * (a - m) / a, 100 * (d - m) / d, p, c, ts, tf }'
+    -v p="$platform" -v c="${changed:-none}" -v ts="$ts" -v tf="$tf" \
+    -v d1="$d1" -v d2="$d2" -v m1="$m1" -v m2="$m2" 'BEGIN {
+    printf "| %s | %d | %.2f | %.2f | %.2f | %.2f | %.1f | %+.1f | %.1f / %.1f | %.1f / %.1f | %s | %s | %s | %s |\n",
+      name, n, a, k, d, m, 100 * (a - m) / a, 100 * (d - m) / d, d1, d2, m1, m2, p, c, ts, tf }'
 }
 
 {
@@ -77,13 +85,15 @@ row() {
   echo "the trained model's gain in MAE (positive = better). \"platform\": the mode fit's"
   echo "choice on the first half (\"no robot\": the log drove at car speeds, so a robot was"
   echo "not tried), then the trained file's (the fit's only if its held-out part confirmed"
-  echo "it). \"fitted\": what the written model changed (confirmed mode constants as old →"
-  echo "new, the boresight measured on the truth among them; a fine-tuned network)."
+  echo "it). \"fitted\": what the written model changed (\"σ\": the moving classes whose σ"
+  echo "maps were scaled, by what factor; confirmed mode constants as old → new, the"
+  echo "boresight measured on the truth among them; a fine-tuned network). The ≤1σ / ≤2σ"
+  echo "columns are the shares of the second half's epochs within 1σ and 2σ."
   echo "Train times are wall seconds on the first half and on the whole log, on a 2-core"
   echo "machine with a load average of $(cut -d ' ' -f 1 /proc/loadavg) at the start."
   echo
-  echo "| log | epochs | MAE atan2 | MAE kf | MAE shipped | MAE trained | vs atan2 [%] | vs shipped [%] | platform | fitted | train half [s] | train whole [s] |"
-  echo "|---|---:|---:|---:|---:|---:|---:|---:|---|---|---:|---:|"
+  echo "| log | epochs | MAE atan2 | MAE kf | MAE shipped | MAE trained | vs atan2 [%] | vs shipped [%] | shipped ≤1σ / ≤2σ [%] | trained ≤1σ / ≤2σ [%] | platform | fitted | train half [s] | train whole [s] |"
+  echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---:|---:|"
   seed=7100
   for style in consumer nmea ublox; do
     for _ in 1 2; do

@@ -18,7 +18,7 @@ use super::modes::{fit_modes, modes_of, platform_candidates};
 use super::temporal::train_logged;
 use crate::logs::{self, LogTrack};
 use crate::streval;
-use crate::temporal::TemporalConfig;
+use crate::temporal::{rescale_moving, shares_within, stream_errors, TemporalConfig};
 use crate::train::{self, Dataset, TrainConfig};
 
 /// `ghnet train --data ...`: the shipped model (or `--init`) fitted to the user's logs.
@@ -28,8 +28,10 @@ use crate::train::{self, Dataset, TrainConfig};
 /// not one event's); then the network fine-tuned and the σ maps fitted; the result is
 /// written only if the held-out part confirms it over the starting model the same way
 /// (else the starting model with the fitted mode filter, if that is confirmed, or the
-/// starting model as it is, with a note: `keep_confirmed`). A log of minutes cannot
-/// train the network from scratch, so the starting model is never random.
+/// starting model as it is, with a note: `keep_confirmed`); last, the σ maps of moving
+/// epochs scaled to the log's receiver if the held-out part confirms that
+/// (`keep_sigma_confirmed`). A log of minutes cannot train the network from scratch, so
+/// the starting model is never random.
 pub fn train_data(
     paths: &[impl AsRef<Path>],
     output: &Path,
@@ -67,6 +69,7 @@ pub fn train_data(
         with_modes(&base, cfg.modes)
     };
     let model = keep_confirmed(base, trained, cfg.modes, &va);
+    let model = keep_sigma_confirmed(model, &tr, &va);
     // Named after the output, whatever it came from: consumers tell models by name.
     let mut meta = model.meta().clone();
     meta.name = name;
@@ -143,6 +146,66 @@ fn keep_confirmed(base: Model, trained: Model, modes: ModeParams, va: &[LogTrack
     }
     base
 }
+
+/// `model` with the σ maps of its moving epochs refitted on the training part `tr`
+/// ([`rescale_moving`]) if the held-out part `va` confirms them: its shares within 1σ and
+/// 2σ miss the bars (60–76%, at least 90%) by [`SIGMA_CONFIRM`] less, or, both within
+/// them, the share within 1σ comes that much nearer a Gaussian's 68.3%. Only σ
+/// changes, never a heading, so this runs whether or not the network was fine-tuned:
+/// a receiver's noise and lag are what a user's log shows best, and the shipped maps
+/// are fitted on receivers pooled.
+fn keep_sigma_confirmed(model: Model, tr: &[LogTrack], va: &[LogTrack]) -> Model {
+    let (scaled, classes) = rescale_moving(&model, tr, MIN_SIGMA_EPOCHS);
+    if classes.iter().all(|c| c.1 == 1.0) {
+        eprintln!(
+            "σ maps kept: no class of moving epochs with {MIN_SIGMA_EPOCHS} epochs in the \
+             training part asks for a change"
+        );
+        return model;
+    }
+    let old = shares_within(&stream_errors(&Arc::new(model.clone()), va));
+    let new = shares_within(&stream_errors(&Arc::new(scaled.clone()), va));
+    let factors: Vec<String> = classes
+        .iter()
+        .map(|(c, f)| format!("{c} × {f:.2}"))
+        .collect();
+    let what = format!(
+        "σ maps of moving epochs scaled on the training part ({}): held-out part \
+         {:.1}% / {:.1}% → {:.1}% / {:.1}% within 1σ / 2σ",
+        factors.join(", "),
+        100.0 * old.0,
+        100.0 * old.1,
+        100.0 * new.0,
+        100.0 * new.1
+    );
+    if sigma_confirms(new, old) {
+        eprintln!("{what}");
+        scaled
+    } else {
+        eprintln!("{what}, not confirmed: kept");
+        model
+    }
+}
+
+/// Whether shares within 1σ and 2σ `new` beat `old` by [`SIGMA_CONFIRM`]: they miss
+/// the bars (60–76%, at least 90%) by that much less, or `new` meets them and its 1σ
+/// share is that much nearer 68.3%.
+fn sigma_confirms(new: (f64, f64), old: (f64, f64)) -> bool {
+    let miss =
+        |(c1, c2): (f64, f64)| (c1 - 0.76).max(0.0) + (0.60 - c1).max(0.0) + (0.90 - c2).max(0.0);
+    let off = |(c1, _): (f64, f64)| (c1 - 0.683).abs();
+    miss(new) + SIGMA_CONFIRM <= miss(old)
+        || (miss(new) == 0.0 && off(new) + SIGMA_CONFIRM <= off(old))
+}
+
+/// Fewest moving epochs of a class (cars, others) in the training part for
+/// `ghnet train --data` to refit its σ map: 200 s of driving at 5 Hz.
+const MIN_SIGMA_EPOCHS: usize = 1000;
+
+/// How much nearer the bars a refitted σ must bring the held-out part (shares, 0–1): two
+/// points, about the sampling error of a share over the few thousand correlated epochs
+/// a held-out part of a 20-minute log holds.
+const SIGMA_CONFIRM: f64 = 0.02;
 
 /// Fewest training epochs for `ghnet train --data` to fine-tune the network and refit
 /// its σ maps: on less (about 13 minutes at 5 Hz) the held-out part that
@@ -348,6 +411,34 @@ mod tests {
         let kept = keep_confirmed(base.clone(), broken, modes, &tracks);
         assert_eq!(kept.params().data(), base.params().data());
         assert_eq!(modes_of(&kept), modes);
+    }
+
+    /// σ is rescaled only where the held-out part comes two points nearer the bars:
+    /// out of them by less, or within them and nearer 68.3% within 1σ.
+    #[test]
+    fn a_rescaled_sigma_must_come_nearer_the_bars() {
+        assert!(sigma_confirms((0.74, 0.93), (0.89, 0.98)), "over-covered");
+        assert!(
+            sigma_confirms((0.70, 0.91), (0.77, 0.95)),
+            "just over the 1σ bar"
+        );
+        assert!(sigma_confirms((0.66, 0.91), (0.58, 0.86)), "under-covered");
+        assert!(
+            sigma_confirms((0.69, 0.93), (0.74, 0.96)),
+            "within, nearer 68%"
+        );
+        assert!(
+            !sigma_confirms((0.71, 0.93), (0.72, 0.95)),
+            "within the noise"
+        );
+        assert!(
+            !sigma_confirms((0.68, 0.88), (0.75, 0.92)),
+            "2σ under its bar"
+        );
+        assert!(
+            !sigma_confirms((0.66, 0.93), (0.70, 0.95)),
+            "as near 68% as before"
+        );
     }
 
     /// A robot's `--init` on a log driven at car speeds starts from `auto`, so that a

@@ -42,7 +42,10 @@ use crate::logs::LogTrack;
 use crate::train::{fc_backward, fc_forward, AdamW, ConvStack, Mode};
 
 mod sigma;
-pub use sigma::{calibrate, coverage, fit_sigma_map, mean_abs_deg, stream_errors, Streamed};
+pub use sigma::{
+    calibrate, coverage, fit_sigma_map, mean_abs_deg, rescale_moving, shares_within, stream_errors,
+    Streamed,
+};
 
 /// Hyper-parameters of a temporal training run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

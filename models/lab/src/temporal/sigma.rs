@@ -127,6 +127,106 @@ pub fn calibrate(params: ParamSet, mut meta: ModelMeta, tracks: &[LogTrack]) -> 
     with_maps(&params, &meta, maps)
 }
 
+/// The model with the σ maps of its moving epochs scaled to fit `tracks` (a user's
+/// log): the maps of cars (with their turn map) and of other vehicles, each by one
+/// factor in [0.5, 2] chosen so that its epochs there reach 92% (`RESCALE_2SIGMA`) within
+/// 2σ with the share within 1σ nearest 68.3%, only where `tracks` hold at least
+/// `min_epochs` of its epochs; every other map, the turn term and the scatter floor
+/// kept. One factor, not a new map: a log of minutes holds a few dozen of a class's
+/// tail errors, too few to place a map's twelve knots, while the maps' shape (σ
+/// against the filter's σ) is fitted on hundreds of drives. Moving epochs are where a
+/// receiver's noise and lag show; a log holds too few stops to fit a standing map per
+/// stop. Also returns the
+/// classes scaled, with their factors (none: the model as it was).
+pub fn rescale_moving(
+    model: &Model,
+    tracks: &[LogTrack],
+    min_epochs: usize,
+) -> (Model, Vec<(&'static str, f32)>) {
+    let ModelKind::Temporal {
+        sigma_map: given, ..
+    } = model.meta().kind
+    else {
+        return (model.clone(), Vec::new());
+    };
+    let params = model.params();
+    // Per factor, the shares within 1σ and 2σ of each class's moving epochs.
+    let mut rows: Vec<(f32, [(f64, f64); 2])> = Vec::new();
+    let mut counts = [0usize; 2];
+    for k in 0..=30 {
+        let f = 0.5 * 4f32.powf(k as f32 / 30.0);
+        let run = stream_errors(
+            &Arc::new(with_maps(params, model.meta(), scaled(given, f, f))),
+            tracks,
+        );
+        let mut shares = [(0.0, 0.0); 2];
+        for (c, share) in shares.iter_mut().enumerate() {
+            let of = |i: usize| run.moving[i] && run.car[i] == (c == 0);
+            let idx: Vec<usize> = (0..run.err.len()).filter(|&i| of(i)).collect();
+            counts[c] = idx.len();
+            let n = idx.len().max(1) as f64;
+            let within = |m: f32| {
+                idx.iter()
+                    .filter(|&&i| run.err[i].abs() <= m * run.sigma[i])
+                    .count() as f64
+                    / n
+            };
+            *share = (within(1.0), within(2.0));
+        }
+        rows.push((f, shares));
+    }
+    let mut factors = [1.0f32; 2];
+    let mut chosen = Vec::new();
+    for (c, label) in ["cars, moving", "others, moving"].into_iter().enumerate() {
+        if counts[c] < min_epochs {
+            continue;
+        }
+        let reaching = rows.iter().filter(|r| r.1[c].1 >= RESCALE_2SIGMA);
+        let best = reaching
+            .min_by(|a, b| {
+                (a.1[c].0 - 0.683)
+                    .abs()
+                    .total_cmp(&(b.1[c].0 - 0.683).abs())
+            })
+            .or(rows.last());
+        if let Some(&(f, _)) = best {
+            factors[c] = f;
+            chosen.push((label, f));
+        }
+    }
+    let maps = scaled(given, factors[0], factors[1]);
+    (with_maps(params, model.meta(), maps), chosen)
+}
+
+/// `maps` with the reported σ of cars' moving maps (`car`, `car_turn`) times `car` and
+/// other vehicles' (`platform`) times `other`.
+fn scaled(maps: SigmaMaps, car: f32, other: f32) -> SigmaMaps {
+    let times = |m: SigmaMap, f: f32| SigmaMap {
+        reported_deg: m.reported_deg.map(|y| y * f),
+        ..m
+    };
+    SigmaMaps {
+        car: times(maps.car, car),
+        car_turn: times(maps.car_turn, car),
+        platform: times(maps.platform, other),
+        ..maps
+    }
+}
+
+/// Shares of `run`'s epochs within 1σ and 2σ (reported σ, the uniform one included).
+pub fn shares_within(run: &Streamed) -> (f64, f64) {
+    let n = run.err.len().max(1) as f64;
+    let within = |k: f32| {
+        run.err
+            .iter()
+            .zip(&run.sigma)
+            .filter(|(e, s)| e.abs() <= k * **s)
+            .count() as f64
+            / n
+    };
+    (within(1.0), within(2.0))
+}
+
 /// The model of `params` and `meta` with σ maps `maps`.
 fn with_maps(params: &ParamSet, meta: &ModelMeta, maps: SigmaMaps) -> Model {
     let mut meta = meta.clone();
@@ -227,6 +327,10 @@ const TARGET_2SIGMA: f64 = 0.91;
 /// with a margin: a test set's share per stop moves by about a point (a few hundred
 /// stops).
 const TARGET_2SIGMA_STOP: f64 = 0.92;
+/// Share within 2σ a factor fitted on a user's log must reach there ([`rescale_moving`]):
+/// a point over the maps' target, since the minutes of a log it is fitted on meet the
+/// tails of its later minutes less surely than a map fitted on hundreds of drives.
+const RESCALE_2SIGMA: f64 = 0.92;
 /// The bars per epoch, which a map fitted per stop must still meet: at least
 /// this share within 2σ...
 const BAR_2SIGMA: f64 = 0.90;
@@ -376,6 +480,65 @@ mod tests {
         let v: Vec<(f32, f64)> = (0..10).map(|i| (i as f32, 1.0)).collect();
         assert_eq!(weighted_quantile(&v, 0.68), 6.0);
         assert_eq!(weighted_quantile(&v, 0.0), 0.0);
+    }
+
+    /// Shares within 1σ and 2σ of the moving epochs of vehicles not known to be cars.
+    fn platform_shares(model: &Model, tracks: &[LogTrack]) -> (f64, f64) {
+        let run = stream_errors(&Arc::new(model.clone()), tracks);
+        let idx: Vec<usize> = (0..run.err.len())
+            .filter(|&i| run.moving[i] && !run.car[i])
+            .collect();
+        let within = |k: f32| {
+            let n = idx
+                .iter()
+                .filter(|&&i| run.err[i].abs() <= k * run.sigma[i]);
+            n.count() as f64 / idx.len() as f64
+        };
+        (within(1.0), within(2.0))
+    }
+
+    /// A platform map twice as wide as the shipped one is scaled down on a robot's log,
+    /// one half as wide (short of the 2σ target there) up: the robot's moving epochs
+    /// then reach the target, the wide map's with a share within 1σ nearer 68% than
+    /// before. The car maps, without epochs there, stay as they are.
+    #[test]
+    fn a_mis_scaled_platform_map_is_scaled_back_on_a_robot_log() {
+        let p = crate::drive::DriveParams {
+            tracks: 4,
+            track_min_s: 150.0,
+            track_max_s: 200.0,
+            receivers: vec![crate::drive::ReceiverKind::Rtklib],
+            rates_hz: vec![5],
+            ..crate::drive::DriveParams::default().robots()
+        };
+        let tracks: Vec<LogTrack> = crate::drive::simulate(&p, 5)
+            .iter()
+            .map(LogTrack::from)
+            .collect();
+        let shipped = Model::builtin("ghnet-temporal").expect("built in");
+        let ModelKind::Temporal { sigma_map, .. } = shipped.meta().kind else {
+            panic!("a temporal model");
+        };
+        for wrong in [2.0f32, 0.5] {
+            let maps = scaled(sigma_map, 1.0, wrong);
+            let m = with_maps(shipped.params(), shipped.meta(), maps);
+            let (fixed, classes) = rescale_moving(&m, &tracks, 1000);
+            assert_eq!(classes.len(), 1, "{classes:?}");
+            let (class, f) = classes[0];
+            assert_eq!(class, "others, moving");
+            assert!((f < 1.0) == (wrong > 1.0), "map × {wrong}: factor {f}");
+            let ModelKind::Temporal { sigma_map: got, .. } = fixed.meta().kind else {
+                panic!("a temporal model");
+            };
+            assert_eq!(got.car, sigma_map.car);
+            let (b1, b2) = platform_shares(&m, &tracks);
+            let (a1, a2) = platform_shares(&fixed, &tracks);
+            assert!(a2 >= RESCALE_2SIGMA, "map × {wrong}: {b2} → {a2} within 2σ");
+            if b2 >= RESCALE_2SIGMA {
+                let nearer = (a1 - 0.683).abs() < (b1 - 0.683).abs();
+                assert!(nearer, "map × {wrong}: {b1} → {a1} within 1σ");
+            }
+        }
     }
 
     /// Long stops with small errors and many short ones with large errors, all with
