@@ -3,8 +3,9 @@
 # (`ghnet train --data`, which itself keeps the last 20% of that half to judge its
 # fit), the second half tests. Logs: 20-minute single-track 5 Hz drives of robots with
 # consumer, NMEA and u-blox receivers and of cars with u-blox, RTKLIB and consumer
-# receivers, two seeds each (none a recipe's or models/unmet.sh's), and the shared real
-# drive (1 Hz). Per log: MAE on the second half of atan2, kf, the shipped model and the
+# receivers, two seeds each, a 40-minute robot and car with RTKLIB (long enough to
+# fine-tune the network; no seed is a recipe's or models/unmet.sh's), and the shared
+# real drive (1 Hz). Per log: MAE on the second half of atan2, kf, the shipped model and the
 # trained one, and the shares within 1σ and 2σ of the last two; the platform the fit
 # chose and what the written model changed; the wall time of training on the half and
 # on the whole log. Writes models/reports/ownlog.md (under a minute on 2 cores).
@@ -114,6 +115,15 @@ row() {
       row "car, $style, 5 Hz, seed $seed" "$T/d.csv"
     done
   done
+  # 40-minute logs: their first halves are long enough to fine-tune the network.
+  LONG="--tracks 1 --track-min-s 2400 --track-max-s 2400 --rates-hz 5"
+  # shellcheck disable=SC2086
+  $G simulate drive $LONG $ROBOT --receivers rtklib --seed 7301 --output "$T/d.csv" >/dev/null
+  row "robot, rtklib, 5 Hz, 40 min, seed 7301" "$T/d.csv"
+  # shellcheck disable=SC2086
+  $G simulate drive $LONG --platform-share 0 --receivers rtklib --seed 7302 \
+    --output "$T/d.csv" >/dev/null
+  row "car, rtklib, 5 Hz, 40 min, seed 7302" "$T/d.csv"
   if [ -f "$REAL" ]; then
     row "shared real car drive, 1 Hz" "$REAL"
   fi

@@ -147,10 +147,8 @@ fn keep_confirmed(base: Model, trained: Model, modes: ModeParams, va: &[LogTrack
     base
 }
 
-/// `model` with the σ maps of its moving epochs refitted on the training part `tr`
-/// ([`rescale_moving`]) if the held-out part `va` confirms them: its shares within 1σ and
-/// 2σ miss the bars (60–76%, at least 90%) by [`SIGMA_CONFIRM`] less, or, both within
-/// them, the share within 1σ comes that much nearer a Gaussian's 68.3%. Only σ
+/// `model` with the σ maps of its moving epochs scaled on the training part `tr`
+/// ([`rescale_moving`]) if the held-out part `va` confirms it ([`sigma_confirms`]). Only σ
 /// changes, never a heading, so this runs whether or not the network was fine-tuned:
 /// a receiver's noise and lag are what a user's log shows best, and the shipped maps
 /// are fitted on receivers pooled.
@@ -187,15 +185,17 @@ fn keep_sigma_confirmed(model: Model, tr: &[LogTrack], va: &[LogTrack]) -> Model
     }
 }
 
-/// Whether shares within 1σ and 2σ `new` beat `old` by [`SIGMA_CONFIRM`]: they miss
-/// the bars (60–76%, at least 90%) by that much less, or `new` meets them and its 1σ
-/// share is that much nearer 68.3%.
+/// Whether shares within 1σ and 2σ `new` beat `old`: they miss the bars (60–76%, at
+/// least 90%) by [`SIGMA_CONFIRM`] less, or `new` meets the bars and `old` does not, or
+/// both meet them and `new`'s 1σ share is [`SIGMA_CONFIRM`] nearer 68.3%.
 fn sigma_confirms(new: (f64, f64), old: (f64, f64)) -> bool {
     let miss =
         |(c1, c2): (f64, f64)| (c1 - 0.76).max(0.0) + (0.60 - c1).max(0.0) + (0.90 - c2).max(0.0);
     let off = |(c1, _): (f64, f64)| (c1 - 0.683).abs();
-    miss(new) + SIGMA_CONFIRM <= miss(old)
-        || (miss(new) == 0.0 && off(new) + SIGMA_CONFIRM <= off(old))
+    let (m_new, m_old) = (miss(new), miss(old));
+    m_new + SIGMA_CONFIRM <= m_old
+        || (m_new == 0.0 && m_old > 0.0)
+        || (m_new == 0.0 && off(new) + SIGMA_CONFIRM <= off(old))
 }
 
 /// Fewest moving epochs of a class (cars, others) in the training part for
@@ -427,6 +427,7 @@ mod tests {
             sigma_confirms((0.69, 0.93), (0.74, 0.96)),
             "within, nearer 68%"
         );
+        assert!(sigma_confirms((0.75, 0.96), (0.68, 0.89)), "into the bars");
         assert!(
             !sigma_confirms((0.71, 0.93), (0.72, 0.95)),
             "within the noise"
