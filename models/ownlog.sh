@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # Own-log training measured the way a user meets it: the first half of a log trains
-# (`ghnet train --data`, which itself keeps the last 20% of that half to judge its
-# fit), the second half tests. Logs: 20-minute single-track 5 Hz drives of robots with
+# (`ghnet train --data`, which itself keeps the last 20% of that half to judge its fit),
+# the second half tests. Logs: 20-minute single-track 5 Hz drives of robots with
 # consumer, NMEA and u-blox receivers and of cars with u-blox, RTKLIB and consumer
 # receivers, two seeds each, a 40-minute robot and car with RTKLIB (long enough to
 # fine-tune the network; no seed is a recipe's or models/unmet.sh's), and the shared
-# real drive (1 Hz). Per log: MAE on the second half of atan2, kf, the shipped model and the
-# trained one, and the shares within 1σ and 2σ of the last two; the platform the fit
-# chose and what the written model changed; the wall time of training on the half and
-# on the whole log. Writes models/reports/ownlog.md (under a minute on 2 cores).
+# real drive (1 Hz). Per log: MAE on the second half of atan2, kf, the shipped model and
+# the trained one, and the shares within 1σ and 2σ of the last two; the platform the fit
+# chose and what the written model changed; the wall time of training on the half and on
+# the whole log. Writes models/reports/ownlog.md (under a minute on 2 cores).
 . "$(dirname "$0")/lab-env.sh"
 OUT=models/reports/ownlog.md
 REAL=../shared/data/real/car-nagoya-2024-1hz.csv

@@ -110,6 +110,15 @@ impl From<&Track> for LogTrack {
     }
 }
 
+/// The drives `p` simulates with `seed`, as logs (test material for the fits).
+#[cfg(test)]
+pub(crate) fn simulated(p: &crate::drive::DriveParams, seed: u64) -> Vec<LogTrack> {
+    crate::drive::simulate(p, seed)
+        .iter()
+        .map(LogTrack::from)
+        .collect()
+}
+
 /// Write simulated tracks as one CSV in the log format (plus `platform`, `receiver`,
 /// `rate_hz`, `reversing`, `split`).
 pub fn write_tracks_csv(path: &Path, tracks: &[Track]) -> Result<()> {

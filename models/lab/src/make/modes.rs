@@ -382,24 +382,13 @@ pub(crate) fn lagging_robot_on_a_no_lag_model() -> (Model, Vec<LogTrack>) {
         rates_hz: vec![5],
         ..crate::drive::DriveParams::default().robots()
     };
-    let tracks = crate::drive::simulate(&p, 11)
-        .iter()
-        .map(LogTrack::from)
-        .collect();
-    (with_modes(&builtin, none), tracks)
+    (with_modes(&builtin, none), crate::logs::simulated(&p, 11))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The drives `p` simulates with `seed`, as logs.
-    fn simulated(p: &crate::drive::DriveParams, seed: u64) -> Vec<LogTrack> {
-        crate::drive::simulate(p, seed)
-            .iter()
-            .map(LogTrack::from)
-            .collect()
-    }
+    use crate::logs::simulated;
 
     /// A 20-minute 5 Hz car drive with `receiver`, seeded `seed`, as one log.
     fn car_day(receiver: crate::drive::ReceiverKind, seed: u64) -> Vec<LogTrack> {

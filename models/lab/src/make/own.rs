@@ -161,8 +161,8 @@ fn keep_sigma_confirmed(model: Model, tr: &[LogTrack], va: &[LogTrack]) -> Model
         );
         return model;
     }
-    let old = shares_within(&stream_errors(&Arc::new(model.clone()), va));
-    let new = shares_within(&stream_errors(&Arc::new(scaled.clone()), va));
+    let shares = |m: &Model| shares_within(&stream_errors(&Arc::new(m.clone()), va), |_| true);
+    let (old, new) = (shares(&model), shares(&scaled));
     let factors: Vec<String> = classes
         .iter()
         .map(|(c, f)| format!("{c} × {f:.2}"))

@@ -159,13 +159,8 @@ fn thin_class(
     per_stop: bool,
     label: &str,
 ) -> bool {
-    let (mut epochs, mut stops, mut prev) = (0, 0, None);
-    for i in (0..run.err.len()).filter(|&i| of_class(i)) {
-        epochs += 1;
-        // A new stop: the track's first epoch, or the previous epoch not of the class.
-        stops += usize::from(run.first[i] || prev != Some(i.wrapping_sub(1)));
-        prev = Some(i);
-    }
+    let (idx, starts) = class_epochs(run, of_class);
+    let (epochs, stops) = (idx.len(), starts.iter().filter(|&&b| b).count());
     let thin = epochs < MIN_CLASS_EPOCHS || (per_stop && stops < MIN_CLASS_STOPS);
     if thin {
         let of = if per_stop {
@@ -178,6 +173,19 @@ fn thin_class(
     thin
 }
 
+/// The epochs of `run` that `of_class` selects, and for each whether it starts a stop
+/// (a run of the class): the track's first epoch, or the previous epoch not of the
+/// class.
+fn class_epochs(run: &Streamed, of_class: impl Fn(usize) -> bool) -> (Vec<usize>, Vec<bool>) {
+    let idx: Vec<usize> = (0..run.err.len()).filter(|&i| of_class(i)).collect();
+    let starts = idx
+        .iter()
+        .enumerate()
+        .map(|(k, &i)| run.first[i] || k == 0 || idx[k - 1] != i - 1)
+        .collect();
+    (idx, starts)
+}
+
 /// The model with the σ maps of its moving epochs scaled to fit `tracks` (a user's
 /// log): the maps of cars (with their turn map) and of other vehicles, each by one
 /// factor in [0.5, 2] chosen so that its epochs there reach 92% (`RESCALE_2SIGMA`) within
@@ -187,8 +195,8 @@ fn thin_class(
 /// tail errors, too few to place a map's twelve knots, while the maps' shape (σ
 /// against the filter's σ) is fitted on hundreds of drives. Moving epochs are where a
 /// receiver's noise and lag show; a log holds too few stops to fit a standing map per
-/// stop. Also returns the
-/// classes scaled, with their factors (none: the model as it was).
+/// stop. Also returns the classes scaled, with their factors (none: the model as it
+/// was).
 pub fn rescale_moving(
     model: &Model,
     tracks: &[LogTrack],
@@ -213,16 +221,8 @@ pub fn rescale_moving(
         let mut shares = [(0.0, 0.0); 2];
         for (c, share) in shares.iter_mut().enumerate() {
             let of = |i: usize| run.moving[i] && run.car[i] == (c == 0);
-            let idx: Vec<usize> = (0..run.err.len()).filter(|&i| of(i)).collect();
-            counts[c] = idx.len();
-            let n = idx.len().max(1) as f64;
-            let within = |m: f32| {
-                idx.iter()
-                    .filter(|&&i| run.err[i].abs() <= m * run.sigma[i])
-                    .count() as f64
-                    / n
-            };
-            *share = (within(1.0), within(2.0));
+            counts[c] = (0..run.err.len()).filter(|&i| of(i)).count();
+            *share = shares_within(&run, of);
         }
         rows.push((f, shares));
     }
@@ -264,16 +264,16 @@ fn scaled(maps: SigmaMaps, car: f32, other: f32) -> SigmaMaps {
     }
 }
 
-/// Shares of `run`'s epochs within 1σ and 2σ (reported σ, the uniform one included).
-pub fn shares_within(run: &Streamed) -> (f64, f64) {
-    let n = run.err.len().max(1) as f64;
+/// Shares of the epochs of `run` that `of` selects within 1σ and 2σ (reported σ, the
+/// uniform one included).
+pub fn shares_within(run: &Streamed, of: impl Fn(usize) -> bool) -> (f64, f64) {
+    let idx: Vec<usize> = (0..run.err.len()).filter(|&i| of(i)).collect();
+    let n = idx.len().max(1) as f64;
     let within = |k: f32| {
-        run.err
+        let n_in = idx
             .iter()
-            .zip(&run.sigma)
-            .filter(|(e, s)| e.abs() <= k * **s)
-            .count() as f64
-            / n
+            .filter(|&&i| run.err[i].abs() <= k * run.sigma[i]);
+        n_in.count() as f64 / n
     };
     (within(1.0), within(2.0))
 }
@@ -304,15 +304,9 @@ fn fit_class(
     per_stop: bool,
     label: &str,
 ) -> SigmaMap {
-    let (mut e, mut s, mut starts) = (Vec::new(), Vec::new(), Vec::new());
-    let mut prev = None;
-    for i in (0..run.err.len()).filter(|&i| of_class(i)) {
-        // A new stop: the track's first epoch, or the previous epoch not of the class.
-        starts.push(run.first[i] || prev != Some(i.wrapping_sub(1)));
-        prev = Some(i);
-        e.push(run.err[i]);
-        s.push(run.sigma[i]);
-    }
+    let (idx, starts) = class_epochs(run, of_class);
+    let e: Vec<f32> = idx.iter().map(|&i| run.err[i]).collect();
+    let s: Vec<f32> = idx.iter().map(|&i| run.sigma[i]).collect();
     let ones = vec![1.0; e.len()];
     let stop_w = if per_stop {
         stop_weights(&starts)
@@ -536,16 +530,7 @@ mod tests {
     /// Shares within 1σ and 2σ of the moving epochs of vehicles not known to be cars.
     fn platform_shares(model: &Model, tracks: &[LogTrack]) -> (f64, f64) {
         let run = stream_errors(&Arc::new(model.clone()), tracks);
-        let idx: Vec<usize> = (0..run.err.len())
-            .filter(|&i| run.moving[i] && !run.car[i])
-            .collect();
-        let within = |k: f32| {
-            let n = idx
-                .iter()
-                .filter(|&&i| run.err[i].abs() <= k * run.sigma[i]);
-            n.count() as f64 / idx.len() as f64
-        };
-        (within(1.0), within(2.0))
+        shares_within(&run, |i| run.moving[i] && !run.car[i])
     }
 
     /// A platform map twice as wide as the shipped one is scaled down on a robot's log,
@@ -562,10 +547,7 @@ mod tests {
             rates_hz: vec![5],
             ..crate::drive::DriveParams::default().robots()
         };
-        let tracks: Vec<LogTrack> = crate::drive::simulate(&p, 5)
-            .iter()
-            .map(LogTrack::from)
-            .collect();
+        let tracks = crate::logs::simulated(&p, 5);
         let shipped = Model::builtin("ghnet-temporal").expect("built in");
         let ModelKind::Temporal { sigma_map, .. } = shipped.meta().kind else {
             panic!("a temporal model");
@@ -607,10 +589,7 @@ mod tests {
             rates_hz: vec![5],
             ..crate::drive::DriveParams::default()
         };
-        let tracks: Vec<LogTrack> = crate::drive::simulate(&p, 9)
-            .iter()
-            .map(LogTrack::from)
-            .collect();
+        let tracks = crate::logs::simulated(&p, 9);
         let shipped = Model::builtin("ghnet-temporal").expect("built in");
         let ModelKind::Temporal { sigma_map: was, .. } = shipped.meta().kind else {
             panic!("a temporal model");
