@@ -130,12 +130,13 @@ pub enum HeadingStatus {
     /// standing, so the last moving heading stays the best estimate. Stopped is the
     /// model's call (the epoch's course was not used), so a noisy receiver at rest is
     /// `Held` even where its speed looks like motion, but never past the motion: 0.8 s
-    /// (and three epochs) of plain motion on a steady course end a stop, and a source
-    /// configured as a robot (it turns in place) holds nothing. `heading_std_deg`
-    /// grows with the time stopped; use it with that σ, once per stop: every `Held`
-    /// answer of a stop carries the same error, so a filter that fused each as new
-    /// would grow sure of it. Clients built before this status existed see an unknown
-    /// value and treat it as not `Ok`.
+    /// (and at least two epochs) of plain motion on a steady course end a stop, and a
+    /// source configured as a robot (it turns in place) is `Held` only over the first
+    /// epoch or two of a stop, with a σ near the uniform one. `heading_std_deg` grows
+    /// with the time stopped; use it with that σ, once per stop: every `Held` answer of
+    /// a stop carries the same error, so a filter that fused each as new would grow
+    /// sure of it. Clients built before this status existed see an unknown value and
+    /// treat it as not `Ok`.
     Held = 5,
 }
 
