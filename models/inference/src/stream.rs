@@ -1466,6 +1466,35 @@ mod tests {
         );
     }
 
+    /// A glitch burst inside a departure does not restart the departure's clock: at
+    /// 10 Hz, four epochs at 1.3 m/s 60° off the held heading, then four equal epochs
+    /// at 5 m/s (one more than a run may skip, so the burst's run takes over), then the
+    /// departure goes on. Once the burst ends the departure's run takes over again
+    /// (its time so far counts, the burst's does not) and releases the stand within
+    /// half a second of driving, where a run started afresh would need most of a
+    /// second.
+    #[test]
+    fn a_glitch_burst_inside_a_departure_does_not_restart_it() {
+        let (mut sp, mut h, mut rx) = parked_car(10.0);
+        let mut v = vec![[1.3, 100.0]; 4];
+        v.extend([[5.0, 110.0]; 4]);
+        v.extend((1..=15).map(|k| [1.3 + 0.05 * k as f32, 100.0]));
+        let (_, answers) = held_fast(&mut sp, &mut h, &mut rx, &v);
+        assert!(
+            answers[..4].iter().all(|p| p.status == Status::Held),
+            "the stand holds at first: {answers:?}"
+        );
+        let held = answers[8..]
+            .iter()
+            .take_while(|p| p.status == Status::Held)
+            .count();
+        let statuses: Vec<_> = answers.iter().map(|p| p.status).collect();
+        assert!(
+            held <= 5,
+            "held {held} epochs after the burst: {statuses:?}"
+        );
+    }
+
     /// A car on a noisy 5 Hz receiver (sAcc 0.35 m/s) leaves its stand at 1–1.5 m/s,
     /// its speed once dipping under `3·sAcc` (1.05 m/s) on the way: the dip does not
     /// restart the release clock, and the car is answered within a second of leaving.
