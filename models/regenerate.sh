@@ -24,6 +24,8 @@ done
 "$G" eval --model ghnet-temporal > models/reports/ghnet-temporal.md
 "$G" eval --model ghnet-temporal --data "$REAL" \
   --plot models/reports/car-nagoya-heading.svg > models/reports/car-nagoya.md
+# The same against a kf tuned on that drive's own truth (the strongest kf there).
+"$G" eval --model ghnet-temporal --data "$REAL" --kf tuned > models/reports/car-nagoya-kf-tuned.md
 # Splice the tables into models/README.md between their markers.
 python3 - <<'PY'
 import re, pathlib

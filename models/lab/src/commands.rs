@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 
 use ghnet_inference::Model;
 use ghnet_lab::make::{self, TemporalRecipe};
@@ -24,12 +24,7 @@ pub fn eval_stream(
     kf: Option<&str>,
     plot: Option<&Path>,
 ) -> Result<()> {
-    let kf = match kf {
-        Some(k) => Arc::new(Model::from_name_or_path(k)?),
-        None if streval::is_kf(model) => model.clone(),
-        None => builtin_kf()?,
-    };
-    let (tracks, what) = match data {
+    let (tracks, mut what) = match data {
         Some(p) => (ghnet_lab::logs::read_truth_csv(p)?, p.display().to_string()),
         None => {
             let r = TemporalRecipe::of(model)
@@ -40,6 +35,19 @@ pub fn eval_stream(
             )
         }
     };
+    let kf = match kf {
+        Some(TUNED_KF) if data.is_none() => {
+            bail!("--kf {TUNED_KF} tunes on a log's truth: give the log with --data")
+        }
+        Some(TUNED_KF) => {
+            let (kf, note) = kf_tuned_on(model, &tracks)?;
+            what = format!("{what} ({note})");
+            kf
+        }
+        Some(k) => Arc::new(Model::from_name_or_path(k)?),
+        None if streval::is_kf(model) => model.clone(),
+        None => builtin_kf()?,
+    };
     for t in streval::tables(model, &kf, None, &tracks, &what) {
         println!("### {}\n\n{}", t.title, streval::to_markdown(&t));
     }
@@ -47,6 +55,30 @@ pub fn eval_stream(
         plot_timeline(model, &kf, &tracks[..1], &what, p)?;
     }
     Ok(())
+}
+
+/// The `--kf` value that tunes the Kalman filter on the evaluated log itself.
+const TUNED_KF: &str = "tuned";
+
+/// A `kf` tuned on `tracks` against their truth (grid search, [`make::kf::tune_kf`]),
+/// with `model`'s gap limit (the shipped `kf`'s for a per-epoch model), and a note of
+/// its parameters for the table's title: the baseline a navigation engineer would
+/// tune on the drive at hand, at its best.
+fn kf_tuned_on(
+    model: &Model,
+    tracks: &[ghnet_lab::logs::LogTrack],
+) -> Result<(Arc<Model>, String)> {
+    let max_gap_s = match model.meta().kind.max_gap_s() {
+        Some(g) => g,
+        None => builtin_kf()?
+            .meta()
+            .kind
+            .max_gap_s()
+            .context("the built-in kf has no gap limit")?,
+    };
+    let (q, sv, _) = make::kf::tune_kf(tracks, max_gap_s);
+    let note = format!("kf tuned on this log: q = {q} °/√s, σ_v = {sv} m/s");
+    Ok((Arc::new(make::kf::kf_model(q, sv, max_gap_s)), note))
 }
 
 /// Heading against time on `tracks`: truth, atan2, the Kalman filter, the model ±σ.

@@ -84,7 +84,10 @@ enum Cmd {
         /// CSV log with `truth_heading_deg`: tables on it instead of the held-out data.
         #[arg(long)]
         data: Option<PathBuf>,
-        /// The Kalman filter of the tables (default: the built-in `kf`).
+        /// The Kalman filter of the tables: a model name or path (default: the built-in
+        /// `kf`), or `tuned`: a `kf` tuned on the `--data` log itself by grid search over
+        /// its q and σ_v against the log's truth, the strongest a Kalman filter can do
+        /// there (an oracle: the model under test never sees the truth).
         #[arg(long)]
         kf: Option<String>,
         /// With a stateful model: also plot heading against time (truth, atan2, kf, the

@@ -114,6 +114,48 @@ fn train_eval_and_infer_on_a_small_log() {
     assert!(answered.contains(",held\n"), "a stopped car is held");
 }
 
+/// The `**all**` row's value in the column headed `column` of the first table of a
+/// `ghnet eval` output.
+fn all_row(text: &str, column: &str) -> f64 {
+    let cells = |l: &str| -> Vec<String> { l.split('|').map(|c| c.trim().to_owned()).collect() };
+    let header = text.lines().find(|l| l.contains(column)).expect("a table");
+    let i = cells(header)
+        .iter()
+        .position(|c| c == column)
+        .expect("column");
+    let row = text
+        .lines()
+        .find(|l| l.contains("**all**"))
+        .expect("all row");
+    cells(row)[i].parse().expect("a number")
+}
+
+/// `ghnet eval --kf tuned` compares against a `kf` tuned on the log itself: its title
+/// names the parameters, and the tuned filter is at least as good on the log as the
+/// shipped one (whose parameters are on the grid). Without a log there is no truth to
+/// tune on, and it says so.
+#[test]
+fn eval_against_a_kf_tuned_on_the_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("log.csv");
+    logs::write_tracks_csv(&csv, &small_drive(3)).unwrap();
+    let c = csv.to_str().unwrap();
+    let shipped = String::from_utf8_lossy(&ghnet(&["eval", "--data", c]).stdout).into_owned();
+    let tuned = ghnet(&["eval", "--data", c, "--kf", "tuned"]).stdout;
+    let tuned = String::from_utf8_lossy(&tuned).into_owned();
+    assert!(tuned.contains("kf tuned on this log: q = "), "{tuned}");
+    let (s, t) = (all_row(&shipped, "MAE kf"), all_row(&tuned, "MAE kf"));
+    assert!(t <= s, "tuned {t}° against shipped {s}°");
+    let model = all_row(&shipped, "MAE ghnet-temporal");
+    assert_eq!(all_row(&tuned, "MAE ghnet-temporal"), model);
+    let out = Command::new(env!("CARGO_BIN_EXE_ghnet"))
+        .args(["eval", "--kf", "tuned"])
+        .output()
+        .expect("runs ghnet");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--data"));
+}
+
 /// `--init` with a recipe is refused, not silently ignored (clap's `requires` does not
 /// fire for an empty `--data` list).
 #[test]

@@ -35,19 +35,46 @@ pub fn kf_model(q_deg_per_sqrt_s: f32, sigma_v_mps: f32, max_gap_s: f32) -> Mode
     Model::new(ParamSet::zeros(&arch), meta)
 }
 
+/// The grid [`tune_kf`] searches: `q` (°/√s) and `σ_v` (m/s).
+const Q_GRID: [f32; 13] = [
+    0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0,
+];
+const SIGMA_V_GRID: [f32; 11] = [0.03, 0.05, 0.1, 0.2, 0.3, 0.5, 0.8, 1.2, 2.0, 3.0, 4.0];
+
 /// The Kalman filter tuned on `tracks` by grid search over `q` and `σ_v` (streamed MAE):
-/// the baseline's parameters, chosen on validation data only.
+/// the baseline's parameters, chosen on validation data only. The grid's points run on
+/// every core (a 10 Hz log of 100 drives streams 143 times); the best is the first of
+/// the grid's order at the lowest MAE, whatever the number of cores.
 pub fn tune_kf(tracks: &[LogTrack], max_gap_s: f32) -> (f32, f32, f64) {
+    let points: Vec<(f32, f32)> = Q_GRID
+        .iter()
+        .flat_map(|&q| SIGMA_V_GRID.iter().map(move |&sv| (q, sv)))
+        .collect();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let chunk = points.len().div_ceil(threads);
+    let maes: Vec<f64> = std::thread::scope(|s| {
+        let handles: Vec<_> = points
+            .chunks(chunk)
+            .map(|part| {
+                s.spawn(move || {
+                    part.iter()
+                        .map(|&(q, sv)| {
+                            let m = Arc::new(kf_model(q, sv, max_gap_s));
+                            mae(&run_model(&m, tracks, "kf"), tracks)
+                        })
+                        .collect::<Vec<f64>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().expect("a kf grid thread panicked"))
+            .collect()
+    });
     let mut best = (0.0, 0.0, f64::INFINITY);
-    for q in [
-        0.5f32, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0,
-    ] {
-        for sv in [0.03f32, 0.05, 0.1, 0.2, 0.3, 0.5, 0.8, 1.2, 2.0, 3.0, 4.0] {
-            let m = Arc::new(kf_model(q, sv, max_gap_s));
-            let e = mae(&run_model(&m, tracks, "kf"), tracks);
-            if e < best.2 {
-                best = (q, sv, e);
-            }
+    for (&(q, sv), &e) in points.iter().zip(&maes) {
+        if e < best.2 {
+            best = (q, sv, e);
         }
     }
     best
