@@ -84,9 +84,9 @@ pub struct StepState {
     /// [`RELEASE_COURSE_DEG`]: crate::modes::RELEASE_COURSE_DEG
     pub motion: MotionRun,
     /// The run the epochs skipped from `motion` since its last steady epoch form (a
-    /// departure right after a glitch burst), which takes over from it; after it has,
-    /// the run it displaced (a departure a glitch burst cut into), which takes over
-    /// again once the burst ends.
+    /// departure right after a glitch burst), which takes over from it; right after it
+    /// has, the run it displaced (a departure a glitch burst cut into), which takes
+    /// over again if the burst ends there.
     pub motion_alt: MotionRun,
     /// Unsteady epochs skipped since (glitches inside a departure), at most `max_skips`.
     pub motion_skips: u8,
