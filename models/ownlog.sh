@@ -14,16 +14,9 @@ OUT=models/reports/ownlog.md
 REAL=../shared/data/real/car-nagoya-2024-1hz.csv
 DAY="--tracks 1 --track-min-s 1200 --track-max-s 1200 --rates-hz 5"
 
-# The `**all**` row's MAE columns (atan2, kf, model) and the model's shares within 1σ
-# and 2σ of `ghnet eval` on $2 with model $1, found by the first table's header (a
-# receiver-course column comes and goes).
+# The `**all**` row (`eval_row`) of `ghnet eval` on $2 with model $1.
 all_row() {
-  $G eval --model "$1" --data "$2" | awk -F'|' '
-    /MAE atan2/ && !a { for (i = 1; i <= NF; i++) {
-        if ($i ~ /MAE atan2/) a = i; else if ($i ~ /MAE kf/) k = i;
-        else if ($i ~ /MAE / && $i !~ /receiver/) m = i;
-        else if ($i ~ /≤1σ/) s1 = i; else if ($i ~ /≤2σ/) s2 = i } }
-    /\*\*all\*\*/ && !done { print $a + 0, $k + 0, $m + 0, $s1 + 0, $s2 + 0; done = 1 }'
+  $G eval --model "$1" --data "$2" | eval_row '**all**'
 }
 
 # Wall seconds of `ghnet train --data $1 --output $2`; its stderr goes to $3.

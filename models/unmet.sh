@@ -19,14 +19,15 @@ OUT=models/reports/unmet.md
 # section's own drives against their truth (`ghnet eval --kf tuned`, an oracle no user
 # has) and of ghnet-temporal (--platform auto).
 tuned_kf() {
+  local all first note
+  $G eval --model ghnet-temporal --data "$1" --kf tuned >"$T/tuned.md"
+  all=$(eval_row '**all**' <"$T/tuned.md")
+  first=$(eval_row 'after first motion' <"$T/tuned.md")
+  note=$(head -n 1 "$T/tuned.md" | sed -n 's/.*kf tuned on this log: \(.*\))$/\1/p')
   echo
-  $G eval --model ghnet-temporal --data "$1" --kf tuned | awk -F'|' '
-    NR == 1 { match($0, /q = [^)]*/); note = substr($0, RSTART, RLENGTH) }
-    /MAE atan2/ && !k { for (i = 1; i <= NF; i++) {
-        if ($i ~ /MAE kf/) k = i; else if ($i ~ /MAE ghnet/) m = i } }
-    /\*\*all\*\*/ && !all { all = 1; ka = $k; ma = $m }
-    /after first motion/ && !done { done = 1
-      printf "Against a kf tuned on these drives themselves (%s, by grid search on their truth): %.2f° overall and %.2f° after the first motion, ghnet-temporal %.2f° and %.2f° (%.2f× and %.2f×).\n", note, ka, $k, ma, $m, ma / ka, $m / $k }'
+  awk -v note="$note" -v all="$all" -v first="$first" 'BEGIN {
+    split(all, a, " "); split(first, f, " ")
+    printf "Against a kf tuned on these drives themselves (%s, by grid search on their truth): %.2f° overall and %.2f° after the first motion, ghnet-temporal %.2f° and %.2f° (%.2f× and %.2f×).\n", note, a[2], f[2], a[3], f[3], a[3] / a[2], f[3] / f[2] }'
 }
 {
   echo "# ghnet-temporal per vehicle, receiver style and rate"
