@@ -24,7 +24,10 @@
 //! anywhere meanwhile), when time goes backwards, and on an explicit
 //! [`History::reset`] (a restarted source). Each clearing is counted
 //! ([`History::resets`]). A gap keeps what the temporal model learnt about the vehicle
-//! (car or platform, the receiver's noise), not its heading. Invalid epochs are answered
+//! (car or platform, the receiver's noise), not its heading: a car that stands after
+//! the gap is `Stationary` (uniform σ), answered with the heading before the gap until
+//! its course carries information (`StepState::stale_psi`; `kf`, which knows no
+//! platform, for any vehicle). Invalid epochs are answered
 //! `Invalid` and leave the history as it was. A served source's samples reach the
 //! history through [`crate::SourceStream`], whose rules come first (a sample whose time
 //! goes backwards is answered `Invalid` there and never arrives here): that is what
@@ -583,7 +586,16 @@ impl StreamPredictor {
         sigma_scale: f32,
     ) -> (f32, f32) {
         let a = ve.atan2(vn);
-        let prior = if h.state.has_prior { h.state.psi } else { a };
+        // As the temporal model's first epoch after a fix gap: the heading before it
+        // while the course is noise to the filter (`StepState::stale_psi`).
+        let cap = MAX_STD_DEG.to_radians();
+        let prior = if h.state.has_prior {
+            h.state.psi
+        } else if h.state.stale_psi.is_finite() && base.r2 >= 0.999 * cap * cap {
+            h.state.stale_psi
+        } else {
+            a
+        };
         let (psi, log_sigma, _, _) = filter_step(&self.y, a, prior, base);
         let log_sigma = log_sigma.clamp(crate::head::LOG_SIGMA_MIN, log_sigma_cap());
         h.state = advance(&h.state, vn, ve, acc, dt, psi, log_sigma);
@@ -939,6 +951,56 @@ mod tests {
             assert!((p.heading_deg - 90.0).abs() < 2.0, "{i} {p:?}");
             assert!(p.std_deg > last_std);
             last_std = p.std_deg;
+        }
+    }
+
+    /// A car parked through a fix gap (its receiver out for a minute, as in a garage)
+    /// keeps facing where it did: the history is emptied, so its answers after the gap
+    /// are `Stationary` with the uniform σ, but they give the heading it held before
+    /// the gap, not the course of its receiver's noise at rest (a quarter turn off on
+    /// average), until it drives off; `kf` alike. Before this rule the answers were
+    /// the noise's first course (here 200°).
+    #[test]
+    fn a_stop_through_a_fix_gap_keeps_its_heading() {
+        for name in ["ghnet-temporal", "kf"] {
+            let model = Arc::new(Model::builtin(name).expect("built in"));
+            let mut sp = StreamPredictor::new(model);
+            let mut h = sp.history();
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+            let mut ep = |t: f64, speed: f32, course_deg: f32| {
+                let c = course_deg.to_radians();
+                Epoch {
+                    t_s: t,
+                    v_north: speed * c.cos() + rng.random_range(-0.02f32..0.02),
+                    v_east: speed * c.sin() + rng.random_range(-0.02f32..0.02),
+                    speed_acc: 0.1,
+                }
+            };
+            for i in 0..60 {
+                sp.predict(&mut h, &ep(i as f64, 10.0, 45.0));
+            }
+            for i in 60..80 {
+                sp.predict(&mut h, &ep(i as f64, 0.0, 0.0));
+            }
+            let first = sp.predict(&mut h, &ep(140.0, 0.08, 200.0));
+            assert_eq!(h.last_reset(), Some(Reset::Gap), "{name}");
+            for i in 141..170 {
+                let p = if i == 141 {
+                    first
+                } else {
+                    sp.predict(&mut h, &ep(i as f64, 0.05, 200.0))
+                };
+                assert_eq!(p.status, Status::Stationary, "{name} {i} {p:?}");
+                assert!((p.heading_deg - 45.0).abs() < 3.0, "{name} {i} {p:?}");
+            }
+            let p = (170..200)
+                .map(|i| sp.predict(&mut h, &ep(i as f64, 8.0, 120.0)))
+                .last()
+                .expect("epochs");
+            assert!(
+                (p.heading_deg - 120.0).abs() < 5.0,
+                "{name} drove off: {p:?}"
+            );
         }
     }
 

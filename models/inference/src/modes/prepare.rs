@@ -28,7 +28,7 @@ pub fn prepare(
     let run = track_motion(mp, st, vn, ve, acc, dt);
     keep_or_restore_held(st, run);
     let cap2 = cap2();
-    let prior = if st.has_prior { st.psi } else { course };
+    let prior = prior(st, speed, course, kf_sigma_v);
     let mut step = Step::holding(course, prior, cap2, speed, acc.is_finite());
     if !st.has_prior {
         return step;
@@ -89,6 +89,21 @@ pub fn prepare(
     step.lead_s = mp.lead_s(&st.vehicle, step.has_acc);
     (step.lever_s, step.lever_max) = mp.lever(&st.vehicle, speed);
     step
+}
+
+/// The heading an epoch starts from: the history's, or on its first epoch the course
+/// (`kf`'s convention), or, a car's after a fix gap, the heading before it while the
+/// course is the receiver's noise under `kf`'s gate ([`StepState::stale_psi`]; a
+/// platform may have turned in place).
+fn prior(st: &StepState, speed: f32, course: f32, kf_sigma_v: f32) -> f32 {
+    let noise = measurement(speed, kf_sigma_v).1 >= MAX_STD_DEG.to_radians();
+    if st.has_prior {
+        st.psi
+    } else if st.vehicle.car && st.stale_psi.is_finite() && noise {
+        st.stale_psi
+    } else {
+        course
+    }
 }
 
 /// The direction rules on a moving epoch: a car's departure against a sure heading

@@ -119,6 +119,13 @@ pub struct StepState {
     /// [`SENSE_RUN_M`]: crate::modes::SENSE_RUN_M
     /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
     pub sense_doubt: bool,
+    /// The heading (radians) held before the last fix gap emptied the history; NaN
+    /// when none. After an outage the vehicle may have turned anywhere, so nothing is
+    /// held from it (the answer's σ is the uniform one), but a car that stands after
+    /// the gap most likely still faces about where it did: its `Stationary` answers
+    /// give that heading, not the first course of its receiver's noise, until its
+    /// course carries information. (A platform may have turned in place.)
+    pub stale_psi: f32,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -156,6 +163,7 @@ impl StepState {
         run_m: 0.0,
         sense_known: false,
         sense_doubt: false,
+        stale_psi: f32::NAN,
         vehicle: Vehicle::UNKNOWN,
     };
 
@@ -183,10 +191,16 @@ impl StepState {
         self.vehicle.car && self.t_still > 0.0
     }
 
-    /// An empty history that keeps what it knew about the vehicle (after a fix gap).
+    /// An empty history that keeps what it knew about the vehicle (after a fix gap),
+    /// and its heading as [`StepState::stale_psi`].
     pub fn after_gap(&self) -> StepState {
         StepState {
             vehicle: self.vehicle,
+            stale_psi: if self.has_prior {
+                self.psi
+            } else {
+                self.stale_psi
+            },
             ..Self::EMPTY
         }
     }
