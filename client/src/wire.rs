@@ -127,7 +127,9 @@ pub enum HeadingStatus {
     Stale = 4,
     /// The vehicle is stopped and the heading is the one it had when it stopped, kept
     /// from this source's history (temporal models only): a car does not turn while
-    /// standing, so the last moving heading stays the best estimate. Stopped is the
+    /// standing, so the heading it came to the stop with stays the best estimate (a
+    /// car's is the mean of its answers over the last seconds of driving, unless it
+    /// turned into the stop: the last, slowest courses are the noisiest). Stopped is the
     /// model's call (the epoch's course was not used), so a noisy receiver at rest is
     /// `Held` even where its speed looks like motion, but never past the motion: 0.8 s
     /// (and at least two epochs) of plain motion on a steady course end a stop, and a

@@ -1,6 +1,6 @@
 //! The per-epoch math of the stateful engines, free of any history: the temporal
-//! network's inputs, the Kalman filter's step, the state after an epoch, the reported
-//! σ. [`crate::stream`] applies them to a source's history one epoch at a time; the
+//! network's inputs, the Kalman filter's step, the state after an epoch (what a stop
+//! holds included), the reported σ. [`crate::stream`] applies them to a source's history one epoch at a time; the
 //! lab's training runs them over whole tracks.
 
 use crate::head::{accuracy_sigma_base, KalmanBase, MAX_STD_DEG};
@@ -241,6 +241,57 @@ pub fn reported_sigma(
 fn sense_unknown(st: &StepState) -> bool {
     (st.moved && !st.sense_known && st.vehicle.platform != crate::modes::Platform::Robot)
         || st.sense_doubt
+}
+
+/// A car's stop held from its approach reads, as its raw σ, this many times the spread
+/// of the approach's answers (in quadrature with [`APPROACH_FLOOR_DEG`]), not the
+/// last epoch's σ: the stop's σ map (`car_still`) is fitted on it. The spread is what
+/// tells a held heading's error: on simulated car stops the error's 90th percentile
+/// grows about tenfold from the quietest eighth of approaches to the noisiest, while
+/// the last epoch's σ was nearly the same at every stop (it is taken at walking pace).
+/// 1.5 keeps the held-out stops within the bars per stop as well as per epoch
+/// (`models/reports/ghnet-temporal.md`).
+const APPROACH_SPREAD_K: f32 = 1.5;
+
+/// Floor (degrees) of a stop's raw σ from its approach: answers that agreed exactly
+/// (a lone one, a receiver that repeats its course) do not make a heading exact.
+const APPROACH_FLOOR_DEG: f32 = 0.3;
+
+/// The filter's update of `st` by `step` with the network's outputs `y`, what a stop
+/// holds (the last moving epoch's `y₂` and receiver class; a car's approach and its
+/// spread as the held σ), and the reported σ (degrees); `acc` is the epoch's sAcc (NaN
+/// when absent).
+pub(crate) fn step_and_sigma(
+    st: &mut StepState,
+    step: &Step,
+    y: &[f32],
+    acc: f32,
+    dt: f32,
+    maps: &crate::modes::SigmaMaps,
+) -> (crate::modes::Decision, f32) {
+    let was_moving = st.moving_now();
+    let mut d = crate::modes::commit(st, step, y, dt);
+    if st.moving_now() {
+        // What a stop starting after this epoch holds.
+        st.held_y2 = y[2];
+        st.held_clean = crate::modes::clean(st.vehicle.noise, acc);
+    } else if was_moving {
+        // A stop begins: a car's holds its approach ([`crate::modes::Approach`]); any
+        // stand empties it.
+        if let Some((a, spread)) = st.approach.take().filter(|_| st.vehicle.car) {
+            // Held as surely as its answers agreed: the raw σ the stop's map reads.
+            let raw = (APPROACH_SPREAD_K * spread).hypot(APPROACH_FLOOR_DEG.to_radians());
+            (st.psi, d.psi) = (a, a);
+            (st.log_sigma, d.log_sigma, st.held_y2) = (raw.ln(), raw.ln(), 0.0);
+        }
+    }
+    let std = reported_sigma(step, d.log_sigma, y[2], st, maps);
+    // Driving answers only: not a glitch burst that has not (yet) released a stand,
+    // nor a release off a stand's axis that may still give the stand its heading back.
+    if st.moving_now() && st.driving && st.before_release.is_none() {
+        st.approach.add(st.psi, std, dt);
+    }
+    (d, std)
 }
 
 #[cfg(test)]

@@ -51,10 +51,10 @@ use std::sync::Arc;
 
 use crate::head::{filter_step, heading_deg, scale_input, KalmanBase, MAX_STD_DEG};
 use crate::model::{Engine, Model};
-use crate::modes::{commit, prepare, stationary_course, Step};
+use crate::modes::{prepare, stationary_course, Step};
 use crate::net::Scratch;
 use crate::prediction::{finish_epoch, Prediction, Status, StatusPolicy};
-use crate::step::log_sigma_cap;
+use crate::step::{log_sigma_cap, step_and_sigma};
 use crate::weights::ModelKind;
 
 pub use crate::window::WindowHead;
@@ -545,13 +545,14 @@ impl StreamPredictor {
         };
         head.apply(&h.ring, h.newest, h.filled, &mut self.y[..3]);
         let prev_v = h.state.prev_v;
-        let d = commit(&mut h.state, &pending.step, &self.y[..3], pending.dt);
-        if h.state.moving_now() {
-            // What a stop starting after this epoch holds.
-            h.state.held_y2 = self.y[2];
-            h.state.held_clean = crate::modes::clean(h.state.vehicle.noise, pending.epoch[3]);
-        }
-        let std = reported_sigma(&pending.step, d.log_sigma, self.y[2], &h.state, sigma_map);
+        let (d, std) = step_and_sigma(
+            &mut h.state,
+            &pending.step,
+            &self.y[..3],
+            pending.epoch[3],
+            pending.dt,
+            sigma_map,
+        );
         // Standing is the filter's word that the heading is the held one: an epoch
         // under the motion bar whose course still fed the heading (a speed above the
         // noise, with the small gain its σ gives) moved it, and is no held answer.
@@ -838,7 +839,10 @@ mod tests {
         let c = features.outputs();
         let mut xs: Vec<[f32; INPUTS]> = Vec::new();
         let ModelKind::Temporal {
-            sigma_v_mps, modes, ..
+            sigma_v_mps,
+            modes,
+            sigma_map,
+            ..
         } = model.meta().kind
         else {
             panic!("temporal kind")
@@ -875,7 +879,8 @@ mod tests {
             let y: Vec<f32> = (0..3)
                 .map(|o| b_fc[o] + (0..4 * c).map(|j| w_fc[(o, j)] * flat[j]).sum::<f32>())
                 .collect();
-            let psi = commit(&mut state, &step, &y, dt)
+            let psi = step_and_sigma(&mut state, &step, &y, acc, dt, &sigma_map)
+                .0
                 .psi
                 .to_degrees()
                 .rem_euclid(360.0);
@@ -951,6 +956,38 @@ mod tests {
             assert!((p.heading_deg - 90.0).abs() < 2.0, "{i} {p:?}");
             assert!(p.std_deg > last_std);
             last_std = p.std_deg;
+        }
+    }
+
+    /// A car that brakes to a stop on a straight, its receiver's last courses at
+    /// walking pace swinging 40° off (a 5 Hz receiver noisy at low speed), holds the
+    /// heading of its approach, not the last course the filter followed (a stop holds
+    /// one heading for its whole length).
+    #[test]
+    fn a_stop_holds_its_approach_not_a_last_noisy_course() {
+        let (mut sp, mut h, _) = temporal(11);
+        let ep = |i: usize, speed: f32, course_deg: f32| {
+            let c = course_deg.to_radians();
+            Epoch {
+                t_s: i as f64 * 0.2,
+                v_north: speed * c.cos(),
+                v_east: speed * c.sin(),
+                speed_acc: 0.1,
+            }
+        };
+        for i in 0..150 {
+            sp.predict(
+                &mut h,
+                &ep(i, 8.0 - (i as f32 - 130.0).max(0.0) * 0.35, 45.0),
+            );
+        }
+        for (k, c) in [55.0, 70.0, 85.0].into_iter().enumerate() {
+            sp.predict(&mut h, &ep(150 + k, 1.0, c));
+        }
+        for i in 153..200 {
+            let p = sp.predict(&mut h, &ep(i, 0.0, 0.0));
+            assert_eq!(p.status, Status::Held, "{i} {p:?}");
+            assert!((p.heading_deg - 45.0).abs() < 5.0, "{i} {p:?}");
         }
     }
 

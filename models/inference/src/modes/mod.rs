@@ -58,6 +58,7 @@
 //! `y₁` the reverse decision as a logit around the rule's (`±REVERSE_PRIOR`), `y₂` the
 //! reported `log σ`. Zero outputs are exactly the mode filter.
 
+mod approach;
 mod commit;
 mod noise;
 mod params;
@@ -69,6 +70,7 @@ mod start;
 mod state;
 mod vehicle;
 
+pub use approach::{Approach, APPROACH_BUCKETS, APPROACH_S, APPROACH_TURN_DEG_S};
 pub use commit::{
     commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR, SENSE_RUN_M,
     SENSE_SIGMA_DEG, YAW_TAU_S,

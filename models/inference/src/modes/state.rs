@@ -1,6 +1,7 @@
 //! The recurrent state of one history and one epoch's step before the network's
 //! corrections.
 
+use super::approach::Approach;
 use super::vehicle::{Platform, Vehicle};
 
 /// The recurrent state one step reads and writes. Public for the lab's training, which
@@ -119,6 +120,11 @@ pub struct StepState {
     /// [`SENSE_RUN_M`]: crate::modes::SENSE_RUN_M
     /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
     pub sense_doubt: bool,
+    /// The car's approach to a stop: its driving answers of the last [`APPROACH_S`],
+    /// whose mean a stop starting now holds ([`Approach::take`]).
+    ///
+    /// [`APPROACH_S`]: crate::modes::APPROACH_S
+    pub approach: Approach,
     /// The heading (radians) held before the last fix gap emptied the history; NaN
     /// when none. After an outage the vehicle may have turned anywhere, so nothing is
     /// held from it (the answer's σ is the uniform one), but a car that stands after
@@ -163,6 +169,7 @@ impl StepState {
         run_m: 0.0,
         sense_known: false,
         sense_doubt: false,
+        approach: Approach::EMPTY,
         stale_psi: f32::NAN,
         vehicle: Vehicle::UNKNOWN,
     };

@@ -1,0 +1,243 @@
+//! The heading a car's stop holds: the approach's answers weighted by their σ, not the
+//! last answer alone.
+//!
+//! A car's last epochs before it stands are its slowest, where the course is noisiest
+//! (and a lagging receiver's speed still reads motion the car no longer has): the
+//! filter follows them with the gain their σ gives, and one bad course there became
+//! the heading the whole stop held. The answers of the seconds before, at speed, say
+//! where the car faces as well (a braking car on a straight barely turns), each with
+//! the σ it was answered with. A stop starts from their mean over the last
+//! [`APPROACH_S`], weighted by `1/σ²`, unless the answers turned as the car came to
+//! the stop ([`APPROACH_TURN_DEG_S`]). The stopped rows of the reports
+//! (`models/reports/ghnet-temporal.md`, `car-nagoya.md`, `unmet.md`) show what it holds.
+
+use crate::head::wrap_rad;
+
+/// Seconds of answers the approach holds, in [`APPROACH_BUCKETS`] buckets of equal
+/// length: a window, not a fading weight, because the answers of a slow turn into a
+/// space carry no larger σ than a straight's (the turn term starts at
+/// [`TURN_SPEED`](crate::modes::TURN_SPEED)), and a fading weight kept their pre-turn
+/// headings in the mean.
+pub const APPROACH_S: f32 = 5.0;
+
+/// The turn rate (°/s, median over the window's buckets) from which a car is taken to
+/// have turned into its stop (a parking manoeuvre, a corner): the mean would lag the
+/// turn by about half the window, so the stop holds the last answer, as it would
+/// without the approach. A braking car on a straight or a gentle curve stays under it.
+pub const APPROACH_TURN_DEG_S: f32 = 6.0;
+
+/// Buckets of the approach window.
+pub const APPROACH_BUCKETS: usize = 5;
+
+/// The approach window: per bucket of `APPROACH_S / APPROACH_BUCKETS` seconds, the
+/// unit headings of its moving answers weighted by `1/σ²`, and their count:
+/// `[Σw·cos ψ, Σw·sin ψ, Σw, n]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Approach {
+    sums: [[f32; 4]; APPROACH_BUCKETS],
+    /// The bucket answers go to now.
+    newest: usize,
+    /// Seconds into it.
+    t: f32,
+}
+
+impl Approach {
+    /// No answers.
+    pub const EMPTY: Approach = Approach {
+        sums: [[0.0; 4]; APPROACH_BUCKETS],
+        newest: 0,
+        t: 0.0,
+    };
+
+    /// The mean weight of an answer in the window (0 when empty).
+    fn typical_weight(&self) -> f32 {
+        let (w, n) = self
+            .sums
+            .iter()
+            .fold((0.0, 0.0), |(w, n), b| (w + b[2], n + b[3]));
+        if n > 0.0 {
+            w / n
+        } else {
+            0.0
+        }
+    }
+
+    fn mean(&self) -> Option<f32> {
+        let (mut c, mut s, mut w) = (0.0f32, 0.0f32, 0.0f32);
+        for b in &self.sums {
+            (c, s, w) = (c + b[0], s + b[1], w + b[2]);
+        }
+        (w > 0.0 && c.hypot(s) > 0.0).then(|| s.atan2(c))
+    }
+
+    /// The median of the heading's turn (radians) from one bucket to the next, oldest
+    /// to newest, over buckets with answers; 0 with fewer than two. A median, so that
+    /// one bad course at the end (what the approach is for) does not read as a turn.
+    fn turn_per_bucket(&self) -> f32 {
+        let mut turns = [0.0f32; APPROACH_BUCKETS];
+        let (mut n, mut last) = (0, None);
+        for k in 1..=APPROACH_BUCKETS {
+            let b = self.sums[(self.newest + k) % APPROACH_BUCKETS];
+            if b[2] <= 0.0 {
+                continue;
+            }
+            let m = b[1].atan2(b[0]);
+            if let Some(l) = last {
+                turns[n] = wrap_rad(m - l);
+                n += 1;
+            }
+            last = Some(m);
+        }
+        if n == 0 {
+            return 0.0;
+        }
+        let t = &mut turns[..n];
+        t.sort_by(f32::total_cmp);
+        if n % 2 == 1 {
+            t[n / 2]
+        } else {
+            0.5 * (t[n / 2 - 1] + t[n / 2])
+        }
+    }
+}
+
+impl Approach {
+    /// Adds a driving epoch's answer (heading `psi`, radians, and its reported σ,
+    /// degrees) after `dt`. An answer a half turn from the approach and about as sure
+    /// as its answers (a misread sense put right) starts it again: the answers before
+    /// it faced the other way.
+    pub fn add(&mut self, psi: f32, std_deg: f32, dt: f32) {
+        if !(std_deg.is_finite() && std_deg > 0.0 && psi.is_finite()) {
+            return;
+        }
+        let wi = 1.0 / (std_deg * std_deg);
+        // An answer a half turn from the approach with a σ at most twice its answers'
+        // typical one is a misread sense put right; a less sure one is a glitch's, and
+        // weighs what its σ says.
+        if let Some(m) = self.mean() {
+            let flipped = wrap_rad(psi - m).abs() > 0.5 * std::f32::consts::PI;
+            if flipped && 4.0 * wi >= self.typical_weight() {
+                *self = Approach::EMPTY;
+            }
+        }
+        let bucket = APPROACH_S / APPROACH_BUCKETS as f32;
+        self.t += dt.max(0.0);
+        let mut moved = 0;
+        while self.t >= bucket && moved < APPROACH_BUCKETS {
+            self.t -= bucket;
+            self.newest = (self.newest + 1) % APPROACH_BUCKETS;
+            self.sums[self.newest] = [0.0; 4];
+            moved += 1;
+        }
+        self.t = self.t.min(bucket);
+        let b = &mut self.sums[self.newest];
+        *b = [
+            b[0] + wi * psi.cos(),
+            b[1] + wi * psi.sin(),
+            b[2] + wi,
+            b[3] + 1.0,
+        ];
+    }
+
+    /// Empties the approach and returns what a car's stop that begins now holds: the
+    /// answers' mean (radians) and their weighted circular spread (radians,
+    /// `√(−2 ln R)` of the mean resultant length `R`); `None` when there was no
+    /// approach, or when the car turned as it came to the stop (its answers turned
+    /// faster than [`APPROACH_TURN_DEG_S`]): then the mean lags the turn, and the last
+    /// answer stays.
+    pub fn take(&mut self) -> Option<(f32, f32)> {
+        let a = std::mem::replace(self, Approach::EMPTY);
+        let bucket_s = APPROACH_S / APPROACH_BUCKETS as f32;
+        let turning = a.turn_per_bucket().abs() > (APPROACH_TURN_DEG_S * bucket_s).to_radians();
+        let (mut c, mut s, mut w) = (0.0f32, 0.0f32, 0.0f32);
+        for b in &a.sums {
+            (c, s, w) = (c + b[0], s + b[1], w + b[2]);
+        }
+        if turning || w <= 0.0 || c.hypot(s) <= 0.0 {
+            return None;
+        }
+        let r = (c.hypot(s) / w).clamp(f32::MIN_POSITIVE, 1.0);
+        Some((s.atan2(c), (-2.0 * r.ln()).max(0.0).sqrt()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An approach of answers `(heading °, σ °)` at `hz`.
+    fn approached(hz: f32, answers: &[(f32, f32)]) -> Approach {
+        let mut a = Approach::EMPTY;
+        for &(deg, std) in answers {
+            a.add(deg.to_radians(), std, 1.0 / hz);
+        }
+        a
+    }
+
+    /// The held heading in degrees, the approach emptied.
+    fn stop(a: &mut Approach) -> Option<f32> {
+        a.take().map(|(a, _)| a.to_degrees().rem_euclid(360.0))
+    }
+
+    /// A straight approach whose last answer went 50° astray (a noisy course at walking
+    /// pace): the stop holds the approach's weighted mean, near the straight's heading.
+    #[test]
+    fn a_stop_holds_its_straight_approach_not_its_last_answer() {
+        let mut answers = vec![(30.0, 2.0); 40];
+        answers.push((80.0, 5.0));
+        let mut a = approached(10.0, &answers);
+        let held = stop(&mut a).expect("an approach");
+        assert!((held - 30.0).abs() < 1.0, "held {held}");
+        assert_eq!(a, Approach::EMPTY, "a stand empties it");
+    }
+
+    /// The spread says how far the answers disagreed: none for one steady heading, about
+    /// 5° for answers alternating 10° apart.
+    #[test]
+    fn the_spread_is_the_answers_disagreement() {
+        let (_, steady) = approached(5.0, &[(30.0, 2.0); 20])
+            .take()
+            .expect("approach");
+        assert!(steady.to_degrees() < 0.1, "{steady}");
+        let zigzag: Vec<_> = (0..20)
+            .map(|i| (25.0 + 10.0 * (i % 2) as f32, 2.0))
+            .collect();
+        let (m, spread) = approached(5.0, &zigzag).take().expect("approach");
+        assert!((m.to_degrees() - 30.0).abs() < 0.1, "{m}");
+        assert!((spread.to_degrees() - 5.0).abs() < 0.1, "{spread}");
+    }
+
+    /// Only the window counts: a heading driven ten seconds before the stop is out of it.
+    #[test]
+    fn the_approach_is_a_window() {
+        let mut answers = vec![(120.0, 1.0); 100];
+        answers.extend(vec![(30.0, 2.0); 60]);
+        let held = stop(&mut approached(10.0, &answers)).expect("an approach");
+        assert!((held - 30.0).abs() < 0.5, "held {held}");
+    }
+
+    /// A car that turned into its space at 10°/s holds its last answer (`None`: the
+    /// mean would lag the turn by about 25°).
+    #[test]
+    fn a_turn_into_the_stop_holds_no_approach() {
+        let turn: Vec<_> = (0..50).map(|i| (i as f32, 3.0)).collect();
+        assert_eq!(stop(&mut approached(10.0, &turn)), None);
+        let mut empty = Approach::EMPTY;
+        assert_eq!(stop(&mut empty), None);
+    }
+
+    /// An answer a half turn from the approach and as sure as its answers (a misread
+    /// sense put right) starts it again; an unsure one (a glitch's, σ 60°) only weighs
+    /// its little.
+    #[test]
+    fn a_sense_put_right_restarts_the_approach() {
+        let mut answers = vec![(30.0, 2.0); 20];
+        answers.extend(vec![(210.0, 2.0); 3]);
+        let held = stop(&mut approached(10.0, &answers)).expect("an approach");
+        assert!((held - 210.0).abs() < 0.5, "held {held}");
+        let mut answers = vec![(30.0, 2.0); 20];
+        answers.push((210.0, 60.0));
+        let held = stop(&mut approached(10.0, &answers)).expect("an approach");
+        assert!((held - 30.0).abs() < 0.5, "held {held}");
+    }
+}
