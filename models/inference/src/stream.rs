@@ -590,13 +590,7 @@ impl StreamPredictor {
         // As the temporal model's first epoch after a fix gap: the heading before it
         // while the course is noise to the filter (`StepState::stale_psi`).
         let cap = MAX_STD_DEG.to_radians();
-        let prior = if h.state.has_prior {
-            h.state.psi
-        } else if h.state.stale_psi.is_finite() && base.r2 >= 0.999 * cap * cap {
-            h.state.stale_psi
-        } else {
-            a
-        };
+        let prior = h.state.prior(a, base.r2 >= 0.999 * cap * cap);
         let (psi, log_sigma, _, _) = filter_step(&self.y, a, prior, base);
         let log_sigma = log_sigma.clamp(crate::head::LOG_SIGMA_MIN, log_sigma_cap());
         h.state = advance(&h.state, vn, ve, acc, dt, psi, log_sigma);

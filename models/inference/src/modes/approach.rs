@@ -29,6 +29,9 @@ pub const APPROACH_TURN_DEG_S: f32 = 6.0;
 /// Buckets of the approach window.
 pub const APPROACH_BUCKETS: usize = 5;
 
+/// Seconds of one bucket.
+const BUCKET_S: f32 = APPROACH_S / APPROACH_BUCKETS as f32;
+
 /// The approach window: per bucket of `APPROACH_S / APPROACH_BUCKETS` seconds, the
 /// unit headings of its moving answers weighted by `1/σ²`, and their count:
 /// `[Σw·cos ψ, Σw·sin ψ, Σw, n]`.
@@ -49,12 +52,16 @@ impl Approach {
         t: 0.0,
     };
 
+    /// The window's sums over all buckets, `[Σw·cos ψ, Σw·sin ψ, Σw, n]`.
+    fn totals(&self) -> [f32; 4] {
+        self.sums.iter().fold([0.0; 4], |t, b| {
+            [t[0] + b[0], t[1] + b[1], t[2] + b[2], t[3] + b[3]]
+        })
+    }
+
     /// The mean weight of an answer in the window (0 when empty).
     fn typical_weight(&self) -> f32 {
-        let (w, n) = self
-            .sums
-            .iter()
-            .fold((0.0, 0.0), |(w, n), b| (w + b[2], n + b[3]));
+        let [_, _, w, n] = self.totals();
         if n > 0.0 {
             w / n
         } else {
@@ -62,11 +69,9 @@ impl Approach {
         }
     }
 
+    /// The weighted mean heading (radians), `None` when empty.
     fn mean(&self) -> Option<f32> {
-        let (mut c, mut s, mut w) = (0.0f32, 0.0f32, 0.0f32);
-        for b in &self.sums {
-            (c, s, w) = (c + b[0], s + b[1], w + b[2]);
-        }
+        let [c, s, w, _] = self.totals();
         (w > 0.0 && c.hypot(s) > 0.0).then(|| s.atan2(c))
     }
 
@@ -99,9 +104,7 @@ impl Approach {
             0.5 * (t[n / 2 - 1] + t[n / 2])
         }
     }
-}
 
-impl Approach {
     /// Adds a driving epoch's answer (heading `psi`, radians, and its reported σ,
     /// degrees) after `dt`. An answer a half turn from the approach and about as sure
     /// as its answers (a misread sense put right) starts it again: the answers before
@@ -120,16 +123,15 @@ impl Approach {
                 *self = Approach::EMPTY;
             }
         }
-        let bucket = APPROACH_S / APPROACH_BUCKETS as f32;
         self.t += dt.max(0.0);
         let mut moved = 0;
-        while self.t >= bucket && moved < APPROACH_BUCKETS {
-            self.t -= bucket;
+        while self.t >= BUCKET_S && moved < APPROACH_BUCKETS {
+            self.t -= BUCKET_S;
             self.newest = (self.newest + 1) % APPROACH_BUCKETS;
             self.sums[self.newest] = [0.0; 4];
             moved += 1;
         }
-        self.t = self.t.min(bucket);
+        self.t = self.t.min(BUCKET_S);
         let b = &mut self.sums[self.newest];
         *b = [
             b[0] + wi * psi.cos(),
@@ -147,12 +149,8 @@ impl Approach {
     /// answer stays.
     pub fn take(&mut self) -> Option<(f32, f32)> {
         let a = std::mem::replace(self, Approach::EMPTY);
-        let bucket_s = APPROACH_S / APPROACH_BUCKETS as f32;
-        let turning = a.turn_per_bucket().abs() > (APPROACH_TURN_DEG_S * bucket_s).to_radians();
-        let (mut c, mut s, mut w) = (0.0f32, 0.0f32, 0.0f32);
-        for b in &a.sums {
-            (c, s, w) = (c + b[0], s + b[1], w + b[2]);
-        }
+        let turning = a.turn_per_bucket().abs() > (APPROACH_TURN_DEG_S * BUCKET_S).to_radians();
+        let [c, s, w, _] = a.totals();
         if turning || w <= 0.0 || c.hypot(s) <= 0.0 {
             return None;
         }
@@ -231,13 +229,16 @@ mod tests {
     /// its little.
     #[test]
     fn a_sense_put_right_restarts_the_approach() {
-        let mut answers = vec![(30.0, 2.0); 20];
-        answers.extend(vec![(210.0, 2.0); 3]);
-        let held = stop(&mut approached(10.0, &answers)).expect("an approach");
+        let held = held_after_straight(&[(210.0, 2.0); 3]);
         assert!((held - 210.0).abs() < 0.5, "held {held}");
-        let mut answers = vec![(30.0, 2.0); 20];
-        answers.push((210.0, 60.0));
-        let held = stop(&mut approached(10.0, &answers)).expect("an approach");
+        let held = held_after_straight(&[(210.0, 60.0)]);
         assert!((held - 30.0).abs() < 0.5, "held {held}");
+    }
+
+    /// The held heading (degrees) after 2 s straight at 30° (10 Hz, σ 2°), then `more`.
+    fn held_after_straight(more: &[(f32, f32)]) -> f32 {
+        let mut answers = vec![(30.0, 2.0); 20];
+        answers.extend_from_slice(more);
+        stop(&mut approached(10.0, &answers)).expect("an approach")
     }
 }

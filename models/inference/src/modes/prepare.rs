@@ -91,19 +91,12 @@ pub fn prepare(
     step
 }
 
-/// The heading an epoch starts from: the history's, or on its first epoch the course
-/// (`kf`'s convention), or, a car's after a fix gap, the heading before it while the
-/// course is the receiver's noise under `kf`'s gate ([`StepState::stale_psi`]; a
-/// platform may have turned in place).
+/// The heading an epoch starts from ([`StepState::prior`]): after a fix gap a car's
+/// course is noise under `kf`'s gate (a platform may have turned in place, so its
+/// course always counts).
 fn prior(st: &StepState, speed: f32, course: f32, kf_sigma_v: f32) -> f32 {
     let noise = measurement(speed, kf_sigma_v).1 >= MAX_STD_DEG.to_radians();
-    if st.has_prior {
-        st.psi
-    } else if st.vehicle.car && st.stale_psi.is_finite() && noise {
-        st.stale_psi
-    } else {
-        course
-    }
+    st.prior(course, st.vehicle.car && noise)
 }
 
 /// The direction rules on a moving epoch: a car's departure against a sure heading

@@ -198,6 +198,19 @@ impl StepState {
         self.vehicle.car && self.t_still > 0.0
     }
 
+    /// The heading an epoch starts from: the history's; on its first epoch the course
+    /// (`kf`'s convention), or, after a fix gap, the heading before it
+    /// ([`StepState::stale_psi`]) while `course_is_noise`.
+    pub fn prior(&self, course: f32, course_is_noise: bool) -> f32 {
+        if self.has_prior {
+            self.psi
+        } else if course_is_noise && self.stale_psi.is_finite() {
+            self.stale_psi
+        } else {
+            course
+        }
+    }
+
     /// An empty history that keeps what it knew about the vehicle (after a fix gap),
     /// and its heading as [`StepState::stale_psi`].
     pub fn after_gap(&self) -> StepState {
