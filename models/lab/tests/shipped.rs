@@ -229,39 +229,68 @@ fn temporal_model_reproduces_its_committed_numbers() {
     }
 }
 
+/// The first table of the committed report `models/reports/{name}.md`: its header and
+/// its rows, cells trimmed.
+fn first_table(name: &str) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(format!(
+        "{}/../reports/{name}.md",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    let split = |l: &str| -> Vec<String> {
+        let l = l.trim().trim_start_matches('|').trim_end_matches('|');
+        l.split('|').map(|c| c.trim().to_owned()).collect()
+    };
+    let mut lines = text
+        .lines()
+        .skip_while(|l| !l.starts_with('|'))
+        .take_while(|l| l.starts_with('|'));
+    let header = split(lines.next().expect("a table"));
+    let rows = lines.skip(1).map(split).collect();
+    (header, rows)
+}
+
+/// The cell of `row` under the column `name` of `header`, as a number.
+fn cell(header: &[String], row: &[String], name: &str) -> f64 {
+    let k = header.iter().position(|h| h == name);
+    let k = k.unwrap_or_else(|| panic!("no column `{name}` in {header:?}"));
+    row[k]
+        .parse()
+        .unwrap_or_else(|_| panic!("`{name}` in {row:?}"))
+}
+
 /// The committed report of the shared real drive (`models/reports/car-nagoya.md`,
 /// written by `models/regenerate.sh` from `../shared/data/real/`, which this
 /// repository does not carry) meets the bars: MAE at most 0.9 × the tuned
 /// `kf`'s and 0.8 × atan2's, 60–76% of errors within 1σ, at least 90% within 2σ.
 #[test]
 fn committed_real_drive_report_meets_the_bars() {
-    let text = std::fs::read_to_string(format!(
-        "{}/../reports/car-nagoya.md",
-        env!("CARGO_MANIFEST_DIR")
-    ))
-    .unwrap();
-    // The first table's columns by header, and its overall row.
-    let split = |l: &str| -> Vec<String> {
-        let l = l.trim().trim_start_matches('|').trim_end_matches('|');
-        l.split('|').map(|c| c.trim().to_owned()).collect()
-    };
-    let header = split(text.lines().find(|l| l.starts_with('|')).expect("a table"));
-    let row = text
-        .lines()
-        .find(|l| l.starts_with("| **all** |"))
+    let (header, rows) = first_table("car-nagoya");
+    let row = rows
+        .iter()
+        .find(|r| r[0] == "**all**")
         .expect("the report's overall row");
-    let cells = split(row);
-    let col = |name: &str| -> f64 {
-        let k = header.iter().position(|h| h == name);
-        let k = k.unwrap_or_else(|| panic!("no column `{name}` in {header:?}"));
-        cells[k]
-            .parse()
-            .unwrap_or_else(|_| panic!("`{name}` in {row}"))
-    };
+    let col = |name: &str| cell(&header, row, name);
     let (n, atan2, kf) = (col("N"), col("MAE atan2"), col("MAE kf"));
     let (model, s1, s2) = (col("MAE ghnet-temporal"), col("≤1σ [%]"), col("≤2σ [%]"));
     assert!(n > 1000.0, "{n} epochs");
-    assert!(model <= 0.9 * kf && model <= 0.8 * atan2, "{row}");
+    assert!(model <= 0.9 * kf && model <= 0.8 * atan2, "{row:?}");
     assert!((60.0..=76.0).contains(&s1), "{s1}% within 1σ");
     assert!(s2 >= 90.0, "{s2}% within 2σ");
+}
+
+/// Own-log training (`models/reports/ownlog.md`, written by `models/ownlog.sh`: each
+/// log's first half trains, its second half tests) is never worse than the shipped
+/// model on the held-out half, on any of the simulated logs or the shared real drive.
+#[test]
+fn committed_ownlog_report_never_loses_to_the_shipped_model() {
+    let (header, rows) = first_table("ownlog");
+    assert!(rows.len() >= 14, "{} logs", rows.len());
+    for row in &rows {
+        let (shipped, trained) = (
+            cell(&header, row, "MAE shipped"),
+            cell(&header, row, "MAE trained"),
+        );
+        assert!(trained <= shipped, "{}: {trained}° vs {shipped}°", row[0]);
+    }
 }
