@@ -82,7 +82,7 @@ pub use release::{
     stationary_course, BRAKE_MAX, RELEASE_CONT_ACC_K, RELEASE_CONT_NOISE_K, RELEASE_COURSE_DEG,
     RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP,
     RELEASE_NOISE_CAP_LOW_RATE, RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED,
-    ROBOT_COURSE_NOISE_K, UNSURE_HELD_DEG,
+    ROBOT_COURSE_NOISE_K, TURN_SPEED_CHANGE, UNSURE_HELD_DEG,
 };
 pub use scatter::{
     extrapolation_share, SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED,
@@ -468,6 +468,54 @@ mod tests {
         let (d, _) = no_acc(&mut st, 0.4, 88.0);
         let off = wrap_rad(d.psi - 86f32.to_radians()).to_degrees();
         assert!(off.abs() < 3.0, "after the spike: {off}° {st:?}");
+    }
+
+    /// A car turning through a junction at 6.7 m/s, seen at 1 Hz: 42° in the first
+    /// second is more than `a_max` allows, but the second epoch, as fast and another
+    /// 34° on, is reachable over the two seconds since the last used velocity, and
+    /// the answer follows it ([`TURN_SPEED_CHANGE`]). It was compared with one
+    /// second's allowance, rejected twice more, and the heading stayed 68° behind for
+    /// three seconds. The same courses with the speed falling by 2–3 m/s (a glitch
+    /// burst, as on the shared real drive) are still rejected.
+    #[test]
+    fn a_sharp_turn_at_1hz_is_followed_from_its_second_epoch() {
+        let turn = |speeds: [f32; 3]| {
+            let mut st = StepState::fresh(Platform::Car);
+            along(&mut st, 0.0, 68.0);
+            for _ in 0..20 {
+                along(&mut st, 6.7, 68.0);
+            }
+            let mut answers = Vec::new();
+            for (speed, course) in speeds.into_iter().zip([26.0, -8.0, -8.0]) {
+                let (s, c) = f32::to_radians(course).sin_cos();
+                let step = prepare(
+                    &ModeParams::default(),
+                    0.5,
+                    &mut st,
+                    speed * c,
+                    speed * s,
+                    0.1,
+                    1.0,
+                );
+                let d = commit(&mut st, &step, &[0.0, 0.0, 0.0], 1.0);
+                answers.push(wrap_rad(d.psi).to_degrees());
+            }
+            answers
+        };
+        let steady = turn([6.6, 6.6, 6.8]);
+        assert!(
+            (steady[0] - 68.0).abs() < 1.0,
+            "first epoch gated: {steady:?}"
+        );
+        assert!(
+            (steady[1] + 8.0).abs() < 3.0,
+            "second epoch taken: {steady:?}"
+        );
+        let glitch = turn([4.4, 3.9, 6.7]);
+        assert!(
+            (glitch[1] - 68.0).abs() < 1.0,
+            "a glitch burst is still gated: {glitch:?}"
+        );
     }
 
     /// A car turning at 4.5 m/s whose receiver prints one 0.0 m/s epoch (a bad fix)

@@ -100,6 +100,17 @@ pub const RELEASE_COURSE_DEG: f32 = 30.0;
 /// of driving (a standing car leaves rest only as fast as `a_max` allows).
 pub const BRAKE_MAX: f32 = 10.0;
 
+/// How far (m/s, plus 2σ of the noise) a moving car's speed may differ from its last
+/// used velocity's for the glitch gate to take the epoch as a turn at steady speed,
+/// bounded by `a_max` over all the time since that velocity rather than over one
+/// epoch (the glitch gate). A junction turn changes the velocity's direction, not its
+/// size: at 1 Hz a 90° turn at 6–7 m/s (about 4 m/s² sideways) is more than `a_max`
+/// per epoch, and each later epoch of the turn, compared with the velocity before it
+/// over one epoch's allowance, was rejected too until `max_skips` ran out, three
+/// seconds of a frozen heading. The receiver glitches of the shared real drive at
+/// 8–11 m/s change the speed by 2–4 m/s and stay rejected.
+pub const TURN_SPEED_CHANGE: f32 = 0.5;
+
 /// Times its receiver's noise (the reported sAcc, else the σ measured at rest) a
 /// declared robot's speed must exceed, this epoch and the one before on a steady
 /// course, for a `Stationary` answer to point along its course
@@ -212,7 +223,11 @@ pub(super) fn keep_or_restore_held(st: &mut StepState, step: RunStep) {
 /// At speed that is `a_max·dt` (at most `max_skips` epochs in a row), and so it is for a
 /// car whose last used velocity was slow (under `gate_speed`), whatever its speed now:
 /// a spike out of a slow creep or a stop's lagging tail turned held headings that the
-/// car then had to leave along. A car coming down from speed below `gate_speed` is
+/// car then had to leave along. At speed, an epoch whose speed is within
+/// [`TURN_SPEED_CHANGE`] of the last used velocity's (a turn) may have changed
+/// direction at `a_max` over all the time since that velocity, not just this epoch's
+/// interval, so the second epoch of a sharp turn is taken. A car coming down from
+/// speed below `gate_speed` is
 /// gated only by [`BRAKE_MAX`] (braking reaches 1 g, beyond `a_max`), also at most
 /// `max_skips` epochs in a row, and only when its last used epoch was driving
 /// ([`StepState::driving`]): a drop faster than that is a glitch, not a stop (a stop it
@@ -286,7 +301,13 @@ pub(super) fn glitch(
         }
         reject
     } else {
-        unreachable(dt) && st.skips < mp.max_skips
+        let steady = (speed - prev_speed).abs() <= TURN_SPEED_CHANGE + 2.0 * sig;
+        let secs = if steady && !from_slow {
+            st.t_used + dt
+        } else {
+            dt
+        };
+        unreachable(secs) && st.skips < mp.max_skips
     };
     if reject {
         st.skips = st.skips.saturating_add(1);
