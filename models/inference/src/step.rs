@@ -168,6 +168,9 @@ pub fn advance(
 /// σ is at least [`crate::modes::SENSE_SIGMA_DEG`]: a car's first motion may be a
 /// back-out, answered as forward until it drives on.
 ///
+/// An answer the glitch gate has held for [`GATED_SIGMA_S`] at speed covers the
+/// course it skipped within 2σ: that course may be a sharp turn.
+///
 /// Otherwise a misread direction is not added as a variance: it is a 180° jump, not a
 /// spread, and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior)
 /// swamped the filter's σ so that the map could no longer tell a good epoch from a
@@ -212,6 +215,7 @@ pub fn reported_sigma(
     } else {
         sigma
     };
+    let sigma = sigma.max(gated_floor_deg(step, st));
     let scatter = st.vehicle.scatter;
     // Only a receiver noisier than the filter takes it to be: where the scatter is
     // within the σ_v in use, the maps (fitted on such receivers) already know it.
@@ -231,6 +235,32 @@ pub fn reported_sigma(
     } else {
         sigma
     }
+}
+
+/// Seconds the glitch gate must have skipped velocities at speed before the answer's σ
+/// covers the skipped course. At 1 Hz one skipped epoch is a
+/// second: the gate cannot tell a junction turn sharper than `a_max` from a glitch, and
+/// on simulated 1 Hz u-blox cars fewer than half of such answers (a second-old heading)
+/// were within 2σ of the truth, three quarters once σ covers the course. At 5–10 Hz a
+/// glitch burst that short is skipped rightly, nearly always.
+pub const GATED_SIGMA_S: f32 = 0.5;
+
+/// Half the angle between a skipped course (at [`crate::modes::TURN_SPEED`] or faster,
+/// after [`GATED_SIGMA_S`] of skipping) and the answer, degrees, so that the course
+/// lies within 2σ; 0 otherwise.
+fn gated_floor_deg(step: &Step, st: &StepState) -> f32 {
+    if !(step.glitch && step.speed >= crate::modes::TURN_SPEED && st.t_used >= GATED_SIGMA_S) {
+        return 0.0;
+    }
+    let z = step.course
+        + if st.reverse {
+            std::f32::consts::PI
+        } else {
+            0.0
+        };
+    (0.5 * crate::head::wrap_rad(z - st.psi).abs())
+        .to_degrees()
+        .min(MAX_STD_DEG)
 }
 
 /// Whether `st`'s vehicle has moved without showing which way it faces
@@ -356,22 +386,35 @@ mod tests {
         assert_eq!(doubt, crate::modes::SENSE_SIGMA_DEG, "in doubt");
     }
 
+    /// A car that has driven and knows its sense, heading north.
+    fn driving_car() -> StepState {
+        let mut st = StepState::EMPTY;
+        (st.vehicle.car, st.sense_known, st.t_still, st.psi) = (true, true, 0.0, 0.0);
+        st
+    }
+
+    /// A moving step along `course` (radians) at `speed` from a prior of 0, sAcc known.
+    fn moving_step(course: f32, speed: f32) -> Step {
+        Step {
+            k: 0.5,
+            moving: true,
+            hold: false,
+            sigma_v: 0.1,
+            ..Step::holding(course, 0.0, 0.0, speed, true)
+        }
+    }
+
     /// A car reversing at 1 m/s (the lever's whole `k_max·L` = 0.2) reports at least
     /// the antenna's largest lead, `atan(0.2)` = 11.3°, in quadrature with its own σ;
     /// driving forward, the same epoch keeps the map's σ.
     #[test]
     fn a_reversing_cars_sigma_covers_its_antennas_lead() {
         let maps = SigmaMaps::default();
-        let mut st = StepState::EMPTY;
-        (st.vehicle.car, st.sense_known, st.t_still) = (true, true, 0.0);
+        let mut st = driving_car();
         let step = Step {
-            k: 0.5,
-            moving: true,
-            hold: false,
-            sigma_v: 0.1,
             lever_s: 1.0,
             lever_max: 0.2,
-            ..Step::holding(0.0, 0.0, 0.0, 1.0, true)
+            ..moving_step(0.0, 1.0)
         };
         let log_sigma = 3f32.to_radians().ln();
         let forward = reported_sigma(&step, log_sigma, 0.0, &st, &maps);
@@ -383,5 +426,34 @@ mod tests {
             (reversing - forward.hypot(lead)).abs() < 1e-3,
             "reversing: {reversing}° against {forward}° and the lead's {lead}°"
         );
+    }
+
+    /// A car the gate has held for a second at 7 m/s, its skipped course 40° off the
+    /// answer: σ covers that course within 2σ (20°), since the gate cannot tell a
+    /// sharp turn from a glitch. One 5 Hz epoch into a burst it does not.
+    #[test]
+    fn a_long_gated_answer_covers_the_skipped_course() {
+        let step = Step {
+            k: 0.0,
+            glitch: true,
+            ..moving_step(40f32.to_radians(), 7.0)
+        };
+        // The σ after `t_used` s of skipping, from a filter σ of 1°.
+        let sigma_after = |t_used: f32| {
+            let st = StepState {
+                t_used,
+                ..driving_car()
+            };
+            reported_sigma(
+                &step,
+                1f32.to_radians().ln(),
+                0.0,
+                &st,
+                &SigmaMaps::default(),
+            )
+        };
+        let (short, long) = (sigma_after(0.2), sigma_after(1.0));
+        assert!(short < 2.0, "one 5 Hz epoch skipped: {short}°");
+        assert!((long - 20.0).abs() < 1e-3, "a second skipped: {long}°");
     }
 }
