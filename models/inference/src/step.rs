@@ -168,9 +168,6 @@ pub fn advance(
 /// σ is at least [`crate::modes::SENSE_SIGMA_DEG`]: a car's first motion may be a
 /// back-out, answered as forward until it drives on.
 ///
-/// An answer the glitch gate has held for [`GATED_SIGMA_S`] at speed covers the
-/// course it skipped within 2σ: that course may be a sharp turn.
-///
 /// Otherwise a misread direction is not added as a variance: it is a 180° jump, not a
 /// spread, and `p(1−p)·π²` of a confident decision (about 24° at the rule's prior)
 /// swamped the filter's σ so that the map could no longer tell a good epoch from a
@@ -215,7 +212,6 @@ pub fn reported_sigma(
     } else {
         sigma
     };
-    let sigma = sigma.max(gated_floor_deg(step, st));
     let scatter = st.vehicle.scatter;
     // Only a receiver noisier than the filter takes it to be: where the scatter is
     // within the σ_v in use, the maps (fitted on such receivers) already know it.
@@ -290,7 +286,9 @@ const APPROACH_FLOOR_DEG: f32 = 0.3;
 /// The filter's update of `st` by `step` with the network's outputs `y`, what a stop
 /// holds (the last moving epoch's `y₂` and receiver class; a car's approach and its
 /// spread as the held σ), and the reported σ (degrees); `acc` is the epoch's sAcc (NaN
-/// when absent).
+/// when absent). An answer the glitch gate has held for [`GATED_SIGMA_S`] at speed
+/// reports a σ that covers the course it skipped within 2σ: that course may be a sharp
+/// turn.
 pub(crate) fn step_and_sigma(
     st: &mut StepState,
     step: &Step,
@@ -321,7 +319,9 @@ pub(crate) fn step_and_sigma(
     if st.moving_now() && st.driving && st.before_release.is_none() {
         st.approach.add(st.psi, std, dt);
     }
-    (d, std)
+    // Only the answer's: an approach weighing a held answer by the floor lost the
+    // heading those answers held rightly through a glitch near a stop.
+    (d, std.max(gated_floor_deg(step, st)))
 }
 
 #[cfg(test)]
@@ -438,22 +438,16 @@ mod tests {
             glitch: true,
             ..moving_step(40f32.to_radians(), 7.0)
         };
-        // The σ after `t_used` s of skipping, from a filter σ of 1°.
-        let sigma_after = |t_used: f32| {
+        // The floor under σ after `t_used` s of skipping.
+        let floor_after = |t_used: f32| {
             let st = StepState {
                 t_used,
                 ..driving_car()
             };
-            reported_sigma(
-                &step,
-                1f32.to_radians().ln(),
-                0.0,
-                &st,
-                &SigmaMaps::default(),
-            )
+            gated_floor_deg(&step, &st)
         };
-        let (short, long) = (sigma_after(0.2), sigma_after(1.0));
-        assert!(short < 2.0, "one 5 Hz epoch skipped: {short}°");
+        let (short, long) = (floor_after(0.2), floor_after(1.0));
+        assert_eq!(short, 0.0, "one 5 Hz epoch skipped: {short}°");
         assert!((long - 20.0).abs() < 1e-3, "a second skipped: {long}°");
     }
 }
