@@ -234,11 +234,11 @@ pub fn reported_sigma(
 }
 
 /// Seconds the glitch gate must have skipped velocities at speed before the answer's σ
-/// covers the skipped course. At 1 Hz one skipped epoch is a
-/// second: the gate cannot tell a junction turn sharper than `a_max` from a glitch, and
-/// on simulated 1 Hz u-blox cars fewer than half of such answers (a second-old heading)
-/// were within 2σ of the truth, three quarters once σ covers the course. At 5–10 Hz a
-/// glitch burst that short is skipped rightly, nearly always.
+/// covers the skipped course. At 1 Hz one skipped epoch is a second: the gate cannot
+/// tell a junction turn sharper than `a_max` from a glitch, and on simulated 1 Hz
+/// u-blox cars fewer than half of such answers (a second-old heading) were within 2σ of
+/// the truth, three quarters once σ covers the course. At 5–10 Hz a glitch burst that
+/// short is skipped rightly, nearly always.
 pub const GATED_SIGMA_S: f32 = 0.5;
 
 /// Half the angle between a skipped course (at [`crate::modes::TURN_SPEED`] or faster,

@@ -128,12 +128,13 @@ mod tests {
         assert!(!st.vehicle.car, "a stand ends the run: {st:?}");
     }
 
-    /// One 1 Hz epoch along `course_deg` at `speed` (sAcc 0.1 m/s), filter alone.
-    fn along(st: &mut StepState, speed: f32, course_deg: f32) {
+    /// One 1 Hz epoch along `course_deg` at `speed` (sAcc 0.1 m/s), filter alone: the
+    /// answer.
+    fn along(st: &mut StepState, speed: f32, course_deg: f32) -> Decision {
         let mp = ModeParams::default();
         let (s, c) = course_deg.to_radians().sin_cos();
         let step = prepare(&mp, 0.5, st, speed * c, speed * s, 0.1, 1.0);
-        commit(st, &step, &[0.0, 0.0, 0.0], 1.0);
+        commit(st, &step, &[0.0, 0.0, 0.0], 1.0)
     }
 
     /// The yaw rate follows a steady turn, fades on a straight and is 0 once stopped,
@@ -485,22 +486,10 @@ mod tests {
             for _ in 0..20 {
                 along(&mut st, 6.7, 68.0);
             }
-            let mut answers = Vec::new();
-            for (speed, course) in speeds.into_iter().zip([26.0, -8.0, -8.0]) {
-                let (s, c) = f32::to_radians(course).sin_cos();
-                let step = prepare(
-                    &ModeParams::default(),
-                    0.5,
-                    &mut st,
-                    speed * c,
-                    speed * s,
-                    0.1,
-                    1.0,
-                );
-                let d = commit(&mut st, &step, &[0.0, 0.0, 0.0], 1.0);
-                answers.push(wrap_rad(d.psi).to_degrees());
-            }
-            answers
+            let courses = speeds.into_iter().zip([26.0, -8.0, -8.0]);
+            courses
+                .map(|(speed, course)| wrap_rad(along(&mut st, speed, course).psi).to_degrees())
+                .collect::<Vec<_>>()
         };
         let steady = turn([6.6, 6.6, 6.8]);
         assert!(
