@@ -116,6 +116,20 @@ pub fn wrap_rad(x: f32) -> f32 {
     }
 }
 
+/// The heading (radians) of a vehicle whose velocity points along `course`: the course
+/// itself, or half a turn from it when the vehicle `reverse`s (backing up, it faces
+/// away from where it moves). Not wrapped: callers take differences through
+/// [`wrap_rad`]. One spelling for the mode filter's rules, its update and the σ of an
+/// answer the glitch gate held, which must agree on what a course says.
+#[inline]
+pub fn facing(course: f32, reverse: bool) -> f32 {
+    if reverse {
+        course + std::f32::consts::PI
+    } else {
+        course
+    }
+}
+
 /// Heading in degrees, clockwise from north, in [0, 360).
 #[inline]
 pub fn heading_deg(v_north: f32, v_east: f32) -> f32 {

@@ -248,12 +248,7 @@ fn gated_floor_deg(step: &Step, st: &StepState) -> f32 {
     if !(step.glitch && step.speed >= crate::modes::TURN_SPEED && st.t_used >= GATED_SIGMA_S) {
         return 0.0;
     }
-    let z = step.course
-        + if st.reverse {
-            std::f32::consts::PI
-        } else {
-            0.0
-        };
+    let z = crate::head::facing(step.course, st.reverse);
     (0.5 * crate::head::wrap_rad(z - st.psi).abs())
         .to_degrees()
         .min(MAX_STD_DEG)

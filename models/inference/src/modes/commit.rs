@@ -2,7 +2,7 @@
 //! to the step, the heading, the yaw rate and the clocks updated.
 
 use super::state::{Step, StepState};
-use crate::head::{wrap_rad, MAX_STD_DEG};
+use crate::head::{facing, wrap_rad, MAX_STD_DEG};
 
 /// Logit the rule's reverse decision contributes (`+` reversing, `−` forward): the
 /// network overrides the rule only when its own logit outweighs this.
@@ -74,7 +74,7 @@ pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
         } else {
             step.rule_reverse
         };
-        let z = step.course + if reverse { std::f32::consts::PI } else { 0.0 };
+        let z = facing(step.course, reverse);
         let d = wrap_rad(z - step.prior);
         st.t_mode = if reverse != st.reverse {
             0.0

@@ -8,7 +8,7 @@ use super::scatter::update_scatter;
 use super::start::started;
 use super::state::{Step, StepState};
 use super::vehicle::{Platform, FAST_EPOCHS};
-use crate::head::{wrap_rad, MAX_STD_DEG};
+use crate::head::{facing, wrap_rad, MAX_STD_DEG};
 
 /// The first half of an epoch: time, noise, the rules; mutates the non-heading parts of
 /// `st` and returns the step the network corrects. `kf_sigma_v` is the tuned `kf`'s σ_v
@@ -103,8 +103,7 @@ fn prior(st: &StepState, speed: f32, course: f32, kf_sigma_v: f32) -> f32 {
 /// changes its mode, sustained speed ends a reversal (the heading was wrong by 180°) and
 /// makes the vehicle a car.
 fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32, p: f32, dt: f32) {
-    let pi = std::f32::consts::PI;
-    let z = course + if st.reverse { pi } else { 0.0 };
+    let z = facing(course, st.reverse);
     let d = wrap_rad(z - st.psi);
     let sure = mp.sure(p);
     let limit = if st.t_still > 0.0 {
@@ -135,7 +134,7 @@ fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32,
     if fast && st.reverse {
         st.reverse = false;
         st.t_mode = 0.0;
-        st.psi += pi;
+        st.psi += std::f32::consts::PI;
     }
     st.sense_known |= fast;
     st.sense_doubt &= !fast;
