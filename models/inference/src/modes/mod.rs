@@ -316,16 +316,16 @@ mod tests {
         }
     }
 
-    /// A vehicle on `platform` stands (at `rest` m/s), drives straight, then turns at
-    /// 10°/s, its receiver reporting sAcc `acc` (NaN: none): how far (degrees) the last
-    /// answer is ahead of the last course.
-    fn lead_in_turn(platform: Platform, rest: f32, acc: f32) -> f32 {
+    /// A vehicle on `platform` stands (at `rest` m/s), drives straight at `speed`, then
+    /// turns at 10°/s, its receiver reporting sAcc `acc` (NaN: none): how far (degrees)
+    /// the last answer is ahead of the last course.
+    fn lead_in_turn(platform: Platform, rest: f32, acc: f32, speed: f32) -> f32 {
         let mut st = StepState::fresh(platform);
         run_acc(&mut st, 10, rest, 0.0, acc);
-        run_acc(&mut st, 10, 1.5, 0.0, acc);
+        run_acc(&mut st, 10, speed, 0.0, acc);
         let mut last = (0.0, 0.0);
         for k in 1..=25 {
-            let (d, c) = epoch_acc(&mut st, 1.5, 2.0 * k as f32, acc);
+            let (d, c) = epoch_acc(&mut st, speed, 2.0 * k as f32, acc);
             last = (d.psi, c);
         }
         wrap_rad(last.0 - last.1).to_degrees()
@@ -340,14 +340,14 @@ mod tests {
     /// test).
     #[test]
     fn a_static_hold_receivers_course_is_led_through_a_turn() {
-        let lead = lead_in_turn(Platform::Robot, 0.0, f32::NAN);
+        let lead = lead_in_turn(Platform::Robot, 0.0, f32::NAN, 1.5);
         assert!((3.0..6.0).contains(&lead), "static hold: {lead}°");
-        let nmea = lead_in_turn(Platform::Robot, 0.1, f32::NAN);
+        let nmea = lead_in_turn(Platform::Robot, 0.1, f32::NAN, 1.5);
         assert!(
             (1.0..lead * 0.6).contains(&nmea),
             "no sAcc, creeping at rest: {nmea}°"
         );
-        let raw = lead_in_turn(Platform::Robot, 0.1, 0.1);
+        let raw = lead_in_turn(Platform::Robot, 0.1, 0.1, 1.5);
         assert!(raw.abs() < 1.0, "sAcc, creeping at rest: {raw}°");
         let mut v = Vehicle::UNKNOWN;
         v.observe_hold(0.0);
@@ -383,10 +383,10 @@ mod tests {
     fn a_cars_answer_takes_its_antennas_lever_arm_out() {
         let mut car = Vehicle::UNKNOWN;
         car.car = true;
-        let (lever_s, _) = ModeParams::default().lever(&car, 1.5);
+        let (lever_s, _) = ModeParams::default().lever(&car, 1.5, false);
         assert!(lever_s > 0.0 && lever_s <= LEVER_M / 1.5);
         let want = (10f32.to_radians() * lever_s).atan().to_degrees();
-        let lead = lead_in_turn(Platform::Car, 0.01, f32::NAN);
+        let lead = lead_in_turn(Platform::Car, 0.01, f32::NAN, 1.5);
         // The yaw rate is still growing (smoothed over 2 s) and shrunk by its scatter.
         let taken = 0.6 * want..want + 1.0;
         assert!(taken.contains(&-lead), "forward: {lead}°, want −{want}°");
@@ -412,14 +412,38 @@ mod tests {
         }
     }
 
+    /// A car whose receiver reports sAcc and shows its noise at rest gives raw Doppler
+    /// velocity, which lags little: its antenna's lead is taken out up to `L/2τ` with
+    /// τ = `acc_lag_s` (2 m/s), faded to none at `L/τ`, where a receiver without sAcc
+    /// keeps the course from 2 m/s (previous test). At 3 m/s in a 10°/s turn the
+    /// answer trails the course by about `atan(ω·lever_s)`.
+    #[test]
+    fn a_raw_doppler_cars_lever_is_taken_out_at_speed() {
+        let mut car = Vehicle::UNKNOWN;
+        car.car = true;
+        let mp = ModeParams::default();
+        assert_eq!(mp.lever(&car, 3.0, false), (0.0, 0.0));
+        let (lever_s, _) = mp.lever(&car, 3.0, true);
+        assert!(lever_s > 0.0 && lever_s < LEVER_M / 3.0, "{lever_s}");
+        let whole = LEVER_M / (2.0 * mp.acc_lag_s);
+        assert_eq!(mp.lever(&car, whole, true).0, LEVER_M / whole);
+        assert_eq!(mp.lever(&car, 2.0 * whole, true), (0.0, 0.0));
+        let want = (10f32.to_radians() * lever_s).atan().to_degrees();
+        let lead = lead_in_turn(Platform::Car, 0.1, 0.1, 3.0);
+        assert!(
+            (0.6 * want..want + 1.0).contains(&-lead),
+            "{lead}°, want −{want}°"
+        );
+    }
+
     /// A car whose receiver holds static (exact zeros at rest) runs behind a navigation
     /// filter's lag as a robot's does: its answer leads the course by the lag as well
     /// as taking out the lever arm, so it sits about `atan(10°/s × hold_lag_s)` ahead
     /// of the answer on a receiver that shows its noise at rest.
     #[test]
     fn a_static_hold_cars_answer_is_led_too() {
-        let held = lead_in_turn(Platform::Car, 0.0, f32::NAN);
-        let noisy = lead_in_turn(Platform::Car, 0.01, f32::NAN);
+        let held = lead_in_turn(Platform::Car, 0.0, f32::NAN, 1.5);
+        let noisy = lead_in_turn(Platform::Car, 0.01, f32::NAN, 1.5);
         let lag = (10f32.to_radians() * ModeParams::default().hold_lag_s)
             .atan()
             .to_degrees();

@@ -87,7 +87,7 @@ pub fn prepare(
     step.moving = moving;
     step.sigma_v = sig;
     step.lead_s = mp.lead_s(&st.vehicle, step.has_acc);
-    (step.lever_s, step.lever_max) = mp.lever(&st.vehicle, speed);
+    (step.lever_s, step.lever_max) = mp.lever(&st.vehicle, speed, step.has_acc);
     step
 }
 

@@ -26,7 +26,7 @@ use crate::temporal::{mean_abs_deg, stream_errors};
 /// Multiplicative steps tried on each constant per round.
 const STEPS: [f32; 4] = [0.5, 0.7, 1.4, 2.0];
 
-/// Receiver lags (s) tried for `lag_s` (and `hold_lag_s` and `no_acc_lag_s`, set
+/// Receiver lags (s) tried for `lag_s` (and `hold_lag_s`, `no_acc_lag_s` and `acc_lag_s`, set
 /// alike: a lag fitted on the log replaces the ones assumed from the receiver's static
 /// hold or missing accuracy). A lag starts at 0, where multiplicative steps cannot move
 /// it, so it has a grid of its own.
@@ -324,6 +324,7 @@ fn fit_lag(model: &Model, tracks: &[LogTrack], best: &mut ModeParams, best_s: &m
             lag_s: lag,
             hold_lag_s: lag,
             no_acc_lag_s: lag,
+            acc_lag_s: lag,
             ..*best
         };
         if cand == *best {
@@ -347,6 +348,7 @@ fn changes(a: &ModeParams, b: &ModeParams) -> Vec<String> {
         ("lag_s", a.lag_s, b.lag_s),
         ("hold_lag_s", a.hold_lag_s, b.hold_lag_s),
         ("no_acc_lag_s", a.no_acc_lag_s, b.no_acc_lag_s),
+        ("acc_lag_s", a.acc_lag_s, b.acc_lag_s),
         ("boresight_deg", a.boresight_deg, b.boresight_deg),
     ] {
         if x != y {
@@ -372,6 +374,7 @@ pub(crate) fn lagging_robot_on_a_no_lag_model() -> (Model, Vec<LogTrack>) {
         lag_s: 0.0,
         hold_lag_s: 0.0,
         no_acc_lag_s: 0.0,
+        acc_lag_s: 0.0,
         ..modes_of(&builtin)
     };
     let p = crate::drive::DriveParams {
