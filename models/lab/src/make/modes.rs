@@ -26,10 +26,10 @@ use crate::temporal::{mean_abs_deg, stream_errors};
 /// Multiplicative steps tried on each constant per round.
 const STEPS: [f32; 4] = [0.5, 0.7, 1.4, 2.0];
 
-/// Receiver lags (s) tried for `lag_s` (and `hold_lag_s`, `no_acc_lag_s` and `acc_lag_s`, set
-/// alike: a lag fitted on the log replaces the ones assumed from the receiver's static
-/// hold or missing accuracy). A lag starts at 0, where multiplicative steps cannot move
-/// it, so it has a grid of its own.
+/// Receiver lags (s) tried for `lag_s` (and `hold_lag_s`, `no_acc_lag_s` and
+/// `acc_lag_s`, set alike: a lag fitted on the log replaces the ones assumed from the
+/// receiver's static hold, missing accuracy or raw Doppler velocity). A lag starts at 0,
+/// where multiplicative steps cannot move it, so it has a grid of its own.
 const LAGS: [f32; 6] = [0.0, 0.25, 0.5, 1.0, 1.5, 2.0];
 
 /// Rounds of the coordinate search.
