@@ -10,11 +10,12 @@
 //!   Flipping into reverse takes a sure held heading; leaving a stop along the held
 //!   heading ends a reversal on any heading, since forward is the likelier way out.
 //!   Two escapes keep a wrong mode from lasting: a car never reverses at sustained speed
-//!   (above `escape_speed`, the mode ends and the heading turns by 180°), and a vehicle
-//!   that has not yet shown car-like speed has no reverse mode at all (next point), nor
-//!   does the network's reverse correction give it one: a platform that turned in place
-//!   at a stop and drives off the other way is driving forward. Such a departure may
-//!   also be backing up, and its σ says so ([`StepState::sense_doubt`]).
+//!   (above `escape_speed` by more than the receiver's noise, `ESCAPE_NOISE_K`, the
+//!   mode ends and the heading turns by 180°), and a vehicle that has not yet shown
+//!   car-like speed has no reverse mode at all (next point), nor does the network's
+//!   reverse correction give it one: a platform that turned in place at a stop and
+//!   drives off the other way is driving forward. Such a departure may also be backing
+//!   up, and its σ says so ([`StepState::sense_doubt`]).
 //! * **Cars do not turn in place; platforms do.** A vehicle counts as a car once it has
 //!   driven above `fast_speed` for `fast_secs` and `FAST_EPOCHS` epochs (kept across
 //!   fix gaps: it is the same vehicle). Until then it is treated as a platform that
@@ -77,7 +78,7 @@ pub use commit::{
 };
 pub(crate) use noise::random_walk_variance;
 pub use params::{ModeParams, LEVER_M};
-pub use prepare::prepare;
+pub use prepare::{prepare, ESCAPE_NOISE_K};
 pub use release::{
     stationary_course, BRAKE_MAX, RELEASE_CONT_ACC_K, RELEASE_CONT_NOISE_K, RELEASE_COURSE_DEG,
     RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP,
@@ -287,6 +288,44 @@ mod tests {
             assert!(off.abs() < 10.0, "{off}° at {speed} m/s: {st:?}");
         }
         assert!(!st.reverse, "driving forward: {st:?}");
+    }
+
+    /// A car backing up at 1.7 m/s on a receiver with 0.4 m/s of noise, whose speed
+    /// reads 2.15 m/s two epochs in a row, is still backing up: the reverse mode ends
+    /// only at a speed clear of the noise (`ESCAPE_NOISE_K`), as it does when the car
+    /// drives on at 4 m/s (then it was driving forward, and the heading turns).
+    #[test]
+    fn noise_over_the_escape_speed_does_not_end_a_reversal() {
+        let mp = ModeParams::default();
+        let noisy = |st: &mut StepState, speed: f32, course_deg: f32| {
+            let (s, c) = course_deg.to_radians().sin_cos();
+            let step = prepare(&mp, 0.5, st, speed * c, speed * s, 0.4, 1.0);
+            commit(st, &step, &[0.0, 0.0, 0.0], 1.0)
+        };
+        let mut st = StepState::EMPTY;
+        noisy(&mut st, 0.0, 0.0);
+        for _ in 0..8 {
+            noisy(&mut st, 8.0, 0.0);
+        }
+        for _ in 0..3 {
+            noisy(&mut st, 0.0, 0.0);
+        }
+        for _ in 0..3 {
+            noisy(&mut st, 1.7, 180.0);
+        }
+        assert!(st.vehicle.car && st.reverse, "backing up: {st:?}");
+        for _ in 0..2 {
+            let off = wrap_rad(noisy(&mut st, 2.15, 180.0).psi).to_degrees();
+            assert!(st.reverse && off.abs() < 10.0, "{off}° off: {st:?}");
+        }
+        for _ in 0..2 {
+            noisy(&mut st, 4.0, 180.0);
+        }
+        let off = wrap_rad(st.psi - std::f32::consts::PI).to_degrees();
+        assert!(
+            !st.reverse && off.abs() < 10.0,
+            "{off}° off at 4 m/s: {st:?}"
+        );
     }
 
     /// One 5 Hz epoch of a receiver without sAcc along `course_deg` at `speed` (exact

@@ -47,7 +47,8 @@ pub struct ModeParams {
     pub flip_speed: f32,
     /// The heading must be this sure (°, 1σ) for a direction change.
     pub confident_deg: f32,
-    /// Cars do not reverse above this speed (m/s): the reverse mode ends there.
+    /// Cars do not reverse above this speed (m/s): the reverse mode ends there, once the
+    /// speed also clears the receiver's noise ([`crate::modes::ESCAPE_NOISE_K`]).
     pub escape_speed: f32,
     /// Driving above this speed (m/s) for `fast_secs` makes a vehicle a car.
     pub fast_speed: f32,

@@ -66,7 +66,7 @@ pub fn prepare(
         p_still
     };
     if moving && !step.glitch {
-        direction_rules(mp, st, course, speed, p, dt);
+        direction_rules(mp, st, course, speed, p, dt, sig);
     }
     if speed <= mp.fast_speed {
         // "Continuously fast" ends at any slow epoch, moving or not: a platform's three
@@ -99,10 +99,30 @@ fn prior(st: &StepState, speed: f32, course: f32, kf_sigma_v: f32) -> f32 {
     st.prior(course, st.vehicle.car && noise)
 }
 
+/// Times the receiver's noise σ (m/s) by which a speed must exceed `escape_speed`, and
+/// the epoch before it `0.7·escape_speed`, to show a vehicle faster than a car reverses
+/// (the reverse mode ends, the sense of travel is known). A car backing up at
+/// 1.5–1.8 m/s on a receiver with 0.3–0.4 m/s of noise reads over 2 m/s two epochs in
+/// a row often enough that the bare bar ended its reverse mode while it still backed
+/// up, a half turn off until it stopped: on simulated NMEA, RTKLIB and consumer cars
+/// that was a large share of the error at 0.5–2 m/s (models/reports/unmet.md). Half a
+/// σ gained as much there as a whole one on drives of other seeds, and delayed less a
+/// forward departure misread as a reversal (the 2–5 m/s rows). A quiet receiver's bar
+/// stays near `escape_speed`.
+pub const ESCAPE_NOISE_K: f32 = 0.5;
+
 /// The direction rules on a moving epoch: a car's departure against a sure heading
 /// changes its mode, sustained speed ends a reversal (the heading was wrong by 180°) and
-/// makes the vehicle a car.
-fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32, p: f32, dt: f32) {
+/// makes the vehicle a car. `sig` is the receiver's noise σ (m/s).
+fn direction_rules(
+    mp: &ModeParams,
+    st: &mut StepState,
+    course: f32,
+    speed: f32,
+    p: f32,
+    dt: f32,
+    sig: f32,
+) {
     let z = facing(course, st.reverse);
     let d = wrap_rad(z - st.psi);
     let sure = mp.sure(p);
@@ -125,7 +145,10 @@ fn direction_rules(mp: &ModeParams, st: &mut StepState, course: f32, speed: f32,
     if st.t_still > 0.0 {
         st.sense_doubt = !st.vehicle.car && against;
     }
-    let fast = speed > mp.escape_speed && st.prev_speed > 0.7 * mp.escape_speed && dt <= 2.0;
+    let noise = ESCAPE_NOISE_K * sig;
+    let fast = speed > mp.escape_speed + noise
+        && st.prev_speed > 0.7 * mp.escape_speed + noise
+        && dt <= 2.0;
     (st.t_fast, st.n_fast) = if speed > mp.fast_speed {
         (st.t_fast + dt, st.n_fast.saturating_add(1))
     } else {

@@ -103,12 +103,14 @@ pub struct StepState {
     /// [`SENSE_RUN_M`]: crate::modes::SENSE_RUN_M
     pub run_m: f32,
     /// Whether the history has shown which way the vehicle faces: it drove faster than
-    /// a car reverses (`escape_speed`), or [`SENSE_RUN_M`] without a stand, longer
+    /// a car reverses (`escape_speed` and the receiver's noise,
+    /// [`ESCAPE_NOISE_K`]), or [`SENSE_RUN_M`] without a stand, longer
     /// than a back-out. Until then a car may be backing out of a space, and its
     /// answer's σ covers the half turn ([`SENSE_SIGMA_DEG`]).
     ///
     /// [`SENSE_RUN_M`]: crate::modes::SENSE_RUN_M
     /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
+    /// [`ESCAPE_NOISE_K`]: crate::modes::ESCAPE_NOISE_K
     pub sense_known: bool,
     /// Whether a vehicle not known to be a car left its last stand against the heading
     /// it held there (further off than `flip_stop_deg`), and has not since driven
