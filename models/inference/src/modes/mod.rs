@@ -132,9 +132,14 @@ mod tests {
     /// One 1 Hz epoch along `course_deg` at `speed` (sAcc 0.1 m/s), filter alone: the
     /// answer.
     fn along(st: &mut StepState, speed: f32, course_deg: f32) -> Decision {
+        along_acc(st, speed, course_deg, 0.1)
+    }
+
+    /// [`along`] on a receiver reporting sAcc `acc` (m/s).
+    fn along_acc(st: &mut StepState, speed: f32, course_deg: f32, acc: f32) -> Decision {
         let mp = ModeParams::default();
         let (s, c) = course_deg.to_radians().sin_cos();
-        let step = prepare(&mp, 0.5, st, speed * c, speed * s, 0.1, 1.0);
+        let step = prepare(&mp, 0.5, st, speed * c, speed * s, acc, 1.0);
         commit(st, &step, &[0.0, 0.0, 0.0], 1.0)
     }
 
@@ -234,16 +239,21 @@ mod tests {
     /// A car (1 Hz, filter alone) that drove north, stood, and backs up southwards
     /// for `epochs` epochs at 1 m/s: in reverse mode, heading north.
     fn reversing_car(epochs: usize) -> StepState {
+        backing_up(epochs, 1.0, 0.1)
+    }
+
+    /// [`reversing_car`] backing up at `speed` on a receiver reporting sAcc `acc`.
+    fn backing_up(epochs: usize, speed: f32, acc: f32) -> StepState {
         let mut st = StepState::EMPTY;
-        along(&mut st, 0.0, 0.0);
+        along_acc(&mut st, 0.0, 0.0, acc);
         for _ in 0..8 {
-            along(&mut st, 8.0, 0.0);
+            along_acc(&mut st, 8.0, 0.0, acc);
         }
         for _ in 0..3 {
-            along(&mut st, 0.0, 0.0);
+            along_acc(&mut st, 0.0, 0.0, acc);
         }
         for _ in 0..epochs {
-            along(&mut st, 1.0, 180.0);
+            along_acc(&mut st, speed, 180.0, acc);
         }
         assert!(st.vehicle.car && st.reverse, "backing up: {st:?}");
         st
@@ -296,30 +306,13 @@ mod tests {
     /// drives on at 4 m/s (then it was driving forward, and the heading turns).
     #[test]
     fn noise_over_the_escape_speed_does_not_end_a_reversal() {
-        let mp = ModeParams::default();
-        let noisy = |st: &mut StepState, speed: f32, course_deg: f32| {
-            let (s, c) = course_deg.to_radians().sin_cos();
-            let step = prepare(&mp, 0.5, st, speed * c, speed * s, 0.4, 1.0);
-            commit(st, &step, &[0.0, 0.0, 0.0], 1.0)
-        };
-        let mut st = StepState::EMPTY;
-        noisy(&mut st, 0.0, 0.0);
-        for _ in 0..8 {
-            noisy(&mut st, 8.0, 0.0);
-        }
-        for _ in 0..3 {
-            noisy(&mut st, 0.0, 0.0);
-        }
-        for _ in 0..3 {
-            noisy(&mut st, 1.7, 180.0);
-        }
-        assert!(st.vehicle.car && st.reverse, "backing up: {st:?}");
+        let mut st = backing_up(3, 1.7, 0.4);
         for _ in 0..2 {
-            let off = wrap_rad(noisy(&mut st, 2.15, 180.0).psi).to_degrees();
+            let off = wrap_rad(along_acc(&mut st, 2.15, 180.0, 0.4).psi).to_degrees();
             assert!(st.reverse && off.abs() < 10.0, "{off}° off: {st:?}");
         }
         for _ in 0..2 {
-            noisy(&mut st, 4.0, 180.0);
+            along_acc(&mut st, 4.0, 180.0, 0.4);
         }
         let off = wrap_rad(st.psi - std::f32::consts::PI).to_degrees();
         assert!(
