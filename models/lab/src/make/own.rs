@@ -139,12 +139,17 @@ fn keep_confirmed(base: Model, trained: Model, modes: ModeParams, va: &[LogTrack
         );
         return with_modes(&base, modes);
     }
-    if new_va.blocks != base_va.blocks {
-        eprintln!(
-            "the fitted model is not confirmed on the held-out part: writing {} unchanged",
-            base.name()
-        );
-    }
+    // Said also when the fine-tune answers the held-out part exactly as the model did
+    // (it kept its first weights): what is written is the model as it was either way.
+    let same = if new_va.blocks == base_va.blocks {
+        " (it answers there as the model did)"
+    } else {
+        ""
+    };
+    eprintln!(
+        "the fitted model is not confirmed on the held-out part{same}: writing {} unchanged",
+        base.name()
+    );
     base
 }
 
