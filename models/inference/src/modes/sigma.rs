@@ -230,7 +230,17 @@ pub enum Smoothing {
 
 impl Smoothing {
     /// The smoothing of a receiver that reports an sAcc (`has_acc`) or not, and whose
-    /// velocity holds static or not.
+    /// velocity holds static or not. An sAcc decides first, a static hold second: the
+    /// turn term this chooses for was fitted on receivers with sAcc, half of the
+    /// simulated u-blox ones lagging, so it covers a filtered receiver's lag already,
+    /// and a lag term on top would count it twice. [`ModeParams::lead_s`] and
+    /// [`ModeParams::lever`] take a static hold first instead: they move the answer by
+    /// a lag, and a static hold is the surest sign of a navigation filter's. No simulated
+    /// receiver both reports sAcc and holds static, so which order serves such a
+    /// receiver (a u-blox with its static hold on) is untested.
+    ///
+    /// [`ModeParams::lead_s`]: crate::modes::ModeParams
+    /// [`ModeParams::lever`]: crate::modes::ModeParams
     pub fn of(has_acc: bool, holds_static: bool) -> Self {
         match (has_acc, holds_static) {
             (true, _) => Smoothing::Accuracy,
