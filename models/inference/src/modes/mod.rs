@@ -623,6 +623,64 @@ mod tests {
         }
     }
 
+    /// A robot drives north at 1.5 m/s on a receiver with 0.25 m/s of noise per axis
+    /// (its sAcc says so), the filter alone: RMS error (degrees) of the answers and of
+    /// the courses over `n` epochs `dt` s apart, after a stand and two seconds of
+    /// driving.
+    fn noisy_robot_drive(mp: &ModeParams, dt: f32, n: usize) -> (f32, f32) {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        // Box–Muller: 0.25 m/s per axis.
+        let noise = |rng: &mut rand_chacha::ChaCha8Rng| {
+            let (u, w): (f32, f32) = (rng.random_range(1e-6..1.0), rng.random());
+            0.25 * (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * w).cos()
+        };
+        let mut st = StepState::fresh(Platform::Robot);
+        let (mut sa, mut sc) = (0.0f32, 0.0f32);
+        let settle = (2.0 / dt) as usize;
+        for k in 0..10 + settle + n {
+            let still = k < 10;
+            let v = if still { 0.0 } else { 1.5 };
+            let (vn, ve) = (v + noise(&mut rng), noise(&mut rng));
+            let step = prepare(mp, 0.5, &mut st, vn, ve, 0.25, dt);
+            let d = commit(&mut st, &step, &[0.0, 0.0, 0.0], dt);
+            if k >= 10 + settle {
+                sa += wrap_rad(d.psi).powi(2);
+                sc += ve.atan2(vn).powi(2);
+            }
+        }
+        let rms = |s: f32| (s / n as f32).sqrt().to_degrees();
+        (rms(sa), rms(sc))
+    }
+
+    /// A moving platform does not spin, so at 5 Hz its filter averages successive
+    /// courses ([`ModeParams::q_move_deg`]) instead of following each one with its
+    /// noise, as it did with the spin's walk (`q_tip_deg`); at 1 Hz, where a robot's
+    /// turn between two courses outruns any walk, it follows them as before.
+    #[test]
+    fn a_moving_robot_averages_its_courses_at_5hz() {
+        let mp = ModeParams::default();
+        let (answer, course) = noisy_robot_drive(&mp, 0.2, 300);
+        assert!(
+            answer < 0.85 * course,
+            "answers {answer}° against courses {course}°"
+        );
+        let spin = ModeParams {
+            q_move_deg: mp.q_tip_deg,
+            ..mp
+        };
+        let (followed, _) = noisy_robot_drive(&spin, 0.2, 300);
+        assert!(
+            followed > 0.9 * course,
+            "the spin's walk: {followed}° against {course}°"
+        );
+        let (at_1hz, course_1hz) = noisy_robot_drive(&mp, 1.0, 100);
+        assert!(
+            at_1hz > 0.9 * course_1hz,
+            "1 Hz: {at_1hz}° against {course_1hz}°"
+        );
+    }
+
     /// A car parked after driving at 40°, the network's `y₂` at its last moving epoch
     /// `held_y2`, on a noisy receiver (0.3 m/s per axis at rest, 300 epochs of it),
     /// then driving off on `course` (degrees, jittered) at 1.1–1.3 m/s, under four

@@ -3,6 +3,7 @@
 //! noise (the prior).
 
 use super::params::ModeParams;
+use super::scatter::SCATTER_SMOOTH_DT;
 use super::state::StepState;
 use super::vehicle::Vehicle;
 use crate::head::MAX_STD_DEG;
@@ -100,12 +101,15 @@ pub(super) fn measured(
     (sig, shat, r, r < mp.moving_r || released)
 }
 
-/// The prior variance (radians²) of a standing step from `st` after `dt`: the class's
-/// random walk (a car's is small: cars do not turn in place).
+/// The prior variance (radians²) of a step from `st` after `dt` before any steering:
+/// the class's random walk (a car's is small: cars do not turn in place; a platform
+/// that `moving` at short intervals does not spin, [`ModeParams::q_move_deg`]).
 #[inline]
-pub(super) fn still_variance(mp: &ModeParams, st: &StepState, dt: f32) -> f32 {
+pub(super) fn walk_variance(mp: &ModeParams, st: &StepState, dt: f32, moving: bool) -> f32 {
     let q = if st.vehicle.car {
         mp.q_still_deg
+    } else if moving && dt <= SCATTER_SMOOTH_DT {
+        mp.q_move_deg
     } else {
         mp.q_tip_deg
     }
@@ -120,10 +124,11 @@ pub(crate) fn random_walk_variance(log_sigma: f32, q: f32, dt: f32) -> f32 {
     ((2.0 * log_sigma).exp() + q * q * dt).min(cap2())
 }
 
-/// `p_still` plus the steering noise of the distance driven at speed `shat` over `dt`
+/// `p_walk` (the walk, [`walk_variance`]) plus the steering noise of the distance
+/// driven at speed `shat` over `dt`
 /// (path curvature `k_max` when slow, lateral acceleration `a_lat` at speed).
 #[inline]
-pub(super) fn driving_variance(mp: &ModeParams, p_still: f32, shat: f32, dt: f32) -> f32 {
+pub(super) fn driving_variance(mp: &ModeParams, p_walk: f32, shat: f32, dt: f32) -> f32 {
     let w = mp.k_max * shat.min(mp.a_lat / (mp.k_max * shat.max(1e-3)));
-    (p_still + w * w * dt).min(cap2())
+    (p_walk + w * w * dt).min(cap2())
 }

@@ -15,6 +15,19 @@ pub struct ModeParams {
     pub q_still_deg: f32,
     /// Heading random walk of a platform that turns in place, °/√s.
     pub q_tip_deg: f32,
+    /// Heading random walk of a platform while it moves, °/√s, at epochs at most
+    /// [`SCATTER_SMOOTH_DT`] apart: it spins only where it stands, and its turns while
+    /// it drives are steering (`k_max`) and creeping, so the spin's walk (`q_tip_deg`)
+    /// had the filter follow each course with its noise. On the robots of
+    /// `reports/unmet.md` at 5 and 10 Hz a third of it gained most on receivers whose
+    /// sAcc understates their noise (RTKLIB), lost in no speed band, and narrowed σ
+    /// where it covered more than a σ should; two thirds of that walk or less cost the
+    /// lagging u-blox robots at 1–2 m/s. At longer intervals (1 Hz) a robot's turn between two courses outruns
+    /// any such walk, and the filter follows each course as before. Files without the
+    /// field load it; own-log training fits it.
+    ///
+    /// [`SCATTER_SMOOTH_DT`]: crate::modes::SCATTER_SMOOTH_DT
+    pub q_move_deg: f32,
     /// Largest path curvature a car steers, 1/m (the heading noise at low speed).
     pub k_max: f32,
     /// Largest lateral acceleration, m/s² (the heading noise at speed: `a_lat/ŝ`).
@@ -130,6 +143,7 @@ impl Default for ModeParams {
         Self {
             q_still_deg: 1.0,
             q_tip_deg: 90.0,
+            q_move_deg: 30.0,
             k_max: 0.2,
             a_lat: 3.0,
             sigma_floor: 0.03,

@@ -1,7 +1,7 @@
 //! The first half of an epoch: time, noise, the glitch gate and the direction rules,
 //! ending in the step the network corrects.
 
-use super::noise::{cap2, driving_variance, measured, measurement, still_variance, update_noise};
+use super::noise::{cap2, driving_variance, measured, measurement, update_noise, walk_variance};
 use super::params::ModeParams;
 use super::release::{glitch, keep_or_restore_held, track_motion, RELEASE_SPEED};
 use super::scatter::update_scatter;
@@ -43,9 +43,9 @@ pub fn prepare(
     step.hold = false;
     update_scatter(st, vn, ve, dt);
     let (sig, shat, r, moving) = measured(mp, st, speed, acc);
-    let p_still = still_variance(mp, st, dt);
+    let p_walk = walk_variance(mp, st, dt, moving);
     // The gate first: a glitch must neither change the direction nor count as driving.
-    step.glitch = glitch(mp, st, vn, ve, speed, sig, dt, moving, p_still, r);
+    step.glitch = glitch(mp, st, vn, ve, speed, sig, dt, moving, p_walk, r);
     if !step.glitch {
         st.driving = st.released();
     }
@@ -61,9 +61,9 @@ pub fn prepare(
     // Steering turns the heading with distance driven: not over a glitch, nor over a
     // car at rest (its noise speed is no distance).
     let p = if !step.glitch && !car_at_rest {
-        driving_variance(mp, p_still, shat, dt)
+        driving_variance(mp, p_walk, shat, dt)
     } else {
-        p_still
+        p_walk
     };
     if moving && !step.glitch {
         direction_rules(mp, st, course, speed, p, dt, sig);

@@ -56,8 +56,9 @@ macro_rules! knob {
 
 /// The constants that depend on the platform, the receiver and the vehicle (where a
 /// car's antenna sits: `lever_m`).
-const KNOBS: [Knob; 11] = [
+const KNOBS: [Knob; 12] = [
     knob!(q_tip_deg, 5.0, 360.0),
+    knob!(q_move_deg, 2.0, 360.0),
     knob!(q_still_deg, 0.05, 20.0),
     knob!(tip_sigma_none, 0.01, 2.0),
     knob!(tip_acc_k, 0.2, 10.0),
