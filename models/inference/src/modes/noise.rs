@@ -103,7 +103,8 @@ pub(super) fn measured(
 
 /// The prior variance (radians²) of a step from `st` after `dt` before any steering:
 /// the class's random walk (a car's is small: cars do not turn in place; a platform
-/// that `moving` at short intervals does not spin, [`ModeParams::q_move_deg`]).
+/// `moving` on epochs at most [`SCATTER_SMOOTH_DT`] apart does not spin either,
+/// [`ModeParams::q_move_deg`]).
 #[inline]
 pub(super) fn walk_variance(mp: &ModeParams, st: &StepState, dt: f32, moving: bool) -> f32 {
     let q = if st.vehicle.car {
@@ -125,8 +126,8 @@ pub(crate) fn random_walk_variance(log_sigma: f32, q: f32, dt: f32) -> f32 {
 }
 
 /// `p_walk` (the walk, [`walk_variance`]) plus the steering noise of the distance
-/// driven at speed `shat` over `dt`
-/// (path curvature `k_max` when slow, lateral acceleration `a_lat` at speed).
+/// driven at speed `shat` over `dt` (path curvature `k_max` when slow, lateral
+/// acceleration `a_lat` at speed).
 #[inline]
 pub(super) fn driving_variance(mp: &ModeParams, p_walk: f32, shat: f32, dt: f32) -> f32 {
     let w = mp.k_max * shat.min(mp.a_lat / (mp.k_max * shat.max(1e-3)));

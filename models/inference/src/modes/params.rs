@@ -19,12 +19,12 @@ pub struct ModeParams {
     /// [`SCATTER_SMOOTH_DT`] apart: it spins only where it stands, and its turns while
     /// it drives are steering (`k_max`) and creeping, so the spin's walk (`q_tip_deg`)
     /// had the filter follow each course with its noise. On the robots of
-    /// `reports/unmet.md` at 5 and 10 Hz a third of it gained most on receivers whose
-    /// sAcc understates their noise (RTKLIB), lost in no speed band, and narrowed σ
-    /// where it covered more than a σ should; two thirds of that walk or less cost the
-    /// lagging u-blox robots at 1–2 m/s. At longer intervals (1 Hz) a robot's turn between two courses outruns
-    /// any such walk, and the filter follows each course as before. Files without the
-    /// field load it; own-log training fits it.
+    /// `reports/unmet.md` at 5 and 10 Hz a third of the spin's walk gained most on
+    /// receivers whose sAcc understates their noise (RTKLIB), lost in no speed band,
+    /// and narrowed σ where it covered more than a σ should; two thirds of that or less
+    /// cost the lagging u-blox robots at 1–2 m/s. At longer intervals (1 Hz) a robot's
+    /// turn between two courses outruns any such walk, and the filter follows each
+    /// course as before. Files without the field load it; own-log training fits it.
     ///
     /// [`SCATTER_SMOOTH_DT`]: crate::modes::SCATTER_SMOOTH_DT
     pub q_move_deg: f32,
