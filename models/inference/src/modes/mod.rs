@@ -630,11 +630,8 @@ mod tests {
     fn noisy_robot_drive(mp: &ModeParams, dt: f32, n: usize) -> (f32, f32) {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-        // Box–Muller: 0.25 m/s per axis.
-        let noise = |rng: &mut rand_chacha::ChaCha8Rng| {
-            let (u, w): (f32, f32) = (rng.random_range(1e-6..1.0), rng.random());
-            0.25 * (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * w).cos()
-        };
+        let normal = rand_distr::Normal::new(0.0f32, 0.25).expect("a valid σ");
+        let noise = |rng: &mut rand_chacha::ChaCha8Rng| rng.sample(normal);
         let mut st = StepState::fresh(Platform::Robot);
         let (mut sa, mut sc) = (0.0f32, 0.0f32);
         let settle = (2.0 / dt) as usize;
