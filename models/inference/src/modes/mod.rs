@@ -563,6 +563,48 @@ mod tests {
         );
     }
 
+    /// One 10 Hz epoch of a receiver without sAcc along `course_deg` at `speed`, filter
+    /// alone: the answer.
+    fn at_10hz(st: &mut StepState, speed: f32, course_deg: f32) -> Decision {
+        let mp = ModeParams::default();
+        let (s, c) = course_deg.to_radians().sin_cos();
+        let step = prepare(&mp, 0.5, st, speed * c, speed * s, f32::NAN, 0.1);
+        commit(st, &step, &[0.0, 0.0, 0.0], 0.1)
+    }
+
+    /// A car standing at 84° reads, at 10 Hz, a glitch pair of 1 m/s along its axis
+    /// backwards (confirmed and on the axis: taken for a back-out), then rest again,
+    /// then a 4 m/s spike. The drop back to rest is braking ([`BRAKE_MAX`]), not a
+    /// glitch. Bounded by `a_max`, the gate skipped it until `max_skips` ran out and
+    /// then took the spike, a back-out at 4 m/s that turned the held heading by 70° (a
+    /// simulated NMEA car, whose next departure was then held on the wrong heading).
+    #[test]
+    fn a_car_back_at_rest_after_a_glitch_pair_keeps_its_heading() {
+        let mut st = StepState::fresh(Platform::Car);
+        at_10hz(&mut st, 0.0, 84.0);
+        for _ in 0..80 {
+            at_10hz(&mut st, 8.0, 84.0);
+        }
+        for k in (0..40).rev() {
+            at_10hz(&mut st, 0.2 * k as f32, 84.0);
+        }
+        for k in 0..50 {
+            at_10hz(&mut st, 0.05, 37.0 * k as f32);
+        }
+        at_10hz(&mut st, 0.98, 281.0);
+        at_10hz(&mut st, 1.08, 270.0);
+        for (speed, course) in [(0.15, 217.0), (0.15, 222.0), (0.21, 219.0)] {
+            at_10hz(&mut st, speed, course);
+            assert_eq!(st.skips, 0, "back at rest at {speed} m/s: {st:?}");
+        }
+        let mut psi = 0.0;
+        for (speed, course) in [(4.01, 193.4), (0.15, 258.0), (0.15, 246.0), (0.1, 210.0)] {
+            psi = at_10hz(&mut st, speed, course).psi;
+        }
+        let off = wrap_rad(psi - 84f32.to_radians()).to_degrees();
+        assert!(off.abs() < 10.0, "{off}° off the held heading: {st:?}");
+    }
+
     /// A car turning at 4.5 m/s whose receiver prints one 0.0 m/s epoch (a bad fix)
     /// did not stop: no car brakes that hard ([`BRAKE_MAX`]). Taken as a stop, the
     /// epoch started a stand that held the heading for a second of the turn.

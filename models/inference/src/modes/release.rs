@@ -220,28 +220,35 @@ pub(super) fn keep_or_restore_held(st: &mut StepState, step: RunStep) {
 /// Whether the glitch gate rejects this velocity: a change from the last used velocity
 /// that a car cannot make in the time since.
 ///
-/// At speed that is `a_max·dt` (at most `max_skips` epochs in a row), and so it is for a
-/// car whose last used velocity was slow (under `gate_speed`), whatever its speed now:
-/// a spike out of a slow creep or a stop's lagging tail turned held headings that the
-/// car then had to leave along. At speed, an epoch whose speed is within
-/// [`TURN_SPEED_CHANGE`] of the last used velocity's (a turn) may have changed
-/// direction at `a_max` over all the time since that velocity, not just this epoch's
-/// interval, so the second epoch of a sharp turn is taken. A car coming down from
-/// speed below `gate_speed` is
-/// gated only by [`BRAKE_MAX`] (braking reaches 1 g, beyond `a_max`), also at most
-/// `max_skips` epochs in a row, and only when its last used epoch was driving
-/// ([`StepState::driving`]): a drop faster than that is a glitch, not a stop (a stop it
-/// started would hold the heading while the car drives on); but right after a glitch
-/// burst ended a stand, the last used velocity is the burst's, and the drop back to
-/// rest is real. A standing car is
-/// stricter, because a held heading is only as good as the epochs it ignores: a burst
-/// of glitches at a stop used to turn it once `max_skips` ran out, and a single spike of
-/// 1–3 m/s at 1 Hz is within `a_max·dt`. So a standing car leaves rest only on a
-/// velocity reachable from rest in the time since the last used one (no count limit:
-/// a real departure always is), only when the next epoch confirms it (a spike does
-/// not repeat; a departure does, one epoch later), and for `axis_secs` only along the
-/// axis of a sure held heading (a car cannot leave a stand sideways; most glitches
-/// point elsewhere).
+/// At speed that is `a_max·dt` (at most `max_skips` epochs in a row), and so it is for
+/// a car whose last used velocity was slow (under `gate_speed`), whatever its speed
+/// now: a spike out of a slow creep or a stop's lagging tail turned held headings that
+/// the car then had to leave along. Such a car coming down to rest (under
+/// [`RELEASE_SPEED`]) is bounded by [`BRAKE_MAX`] instead: it brakes. (A drop that
+/// stays above that speed may be a glitch: taken, on a simulated RTKLIB car, one made
+/// the next real velocity, back at the car's speed, look unreachable, and the gate then
+/// took the glitches that followed.) Bounded by `a_max`, a glitch pair taken for a
+/// departure from a stand (confirmed, along the held axis) made the drop back to rest
+/// look unreachable, so the gate skipped the car's real rest until `max_skips` ran out
+/// and then took whatever came next, often the next spike, which turned the held
+/// heading (simulated NMEA and u-blox cars at 10 Hz, models/reports/unmet.md). At
+/// speed, an epoch whose speed is within [`TURN_SPEED_CHANGE`] of the last used
+/// velocity's (a turn) may have changed direction at `a_max` over all the time since
+/// that velocity, not just this epoch's interval, so the second epoch of a sharp turn
+/// is taken. A car coming down from speed below `gate_speed` is gated only by
+/// [`BRAKE_MAX`] (braking reaches 1 g, beyond `a_max`), also at most `max_skips` epochs
+/// in a row, and only when its last used epoch was driving ([`StepState::driving`]): a
+/// drop faster than that is a glitch, not a stop (a stop it started would hold the
+/// heading while the car drives on); but right after a glitch burst ended a stand, the
+/// last used velocity is the burst's, and the drop back to rest is real. A standing car
+/// is stricter, because a held heading is only as good as the epochs it ignores: a
+/// burst of glitches at a stop used to turn it once `max_skips` ran out, and a single
+/// spike of 1–3 m/s at 1 Hz is within `a_max·dt`. So a standing car leaves rest only on
+/// a velocity reachable from rest in the time since the last used one (no count limit:
+/// a real departure always is), only when the next epoch confirms it (a spike does not
+/// repeat; a departure does, one epoch later), and for `axis_secs` only along the axis
+/// of a sure held heading (a car cannot leave a stand sideways; most glitches point
+/// elsewhere).
 #[inline]
 #[allow(clippy::too_many_arguments)] // one epoch's numbers
 pub(super) fn glitch(
@@ -307,7 +314,10 @@ pub(super) fn glitch(
         } else {
             dt
         };
-        unreachable(secs) && st.skips < mp.max_skips
+        // A slow car coming down to rest brakes: only `BRAKE_MAX` bounds that.
+        let braking = from_slow && speed < prev_speed && speed < RELEASE_SPEED;
+        let limit = if braking { BRAKE_MAX } else { mp.a_max };
+        change > limit * secs + 3.0 * sig && st.skips < mp.max_skips
     };
     if reject {
         st.skips = st.skips.saturating_add(1);
