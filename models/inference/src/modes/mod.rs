@@ -330,10 +330,21 @@ mod tests {
     /// One 5 Hz epoch along `course_deg` at `speed` with sAcc `acc` (NaN: none),
     /// filter alone: the answer and the course (radians).
     fn epoch_acc(st: &mut StepState, speed: f32, course_deg: f32, acc: f32) -> (Decision, f32) {
+        epoch_dt(st, speed, course_deg, acc, 0.2)
+    }
+
+    /// [`epoch_acc`] `dt` s after the last epoch.
+    fn epoch_dt(
+        st: &mut StepState,
+        speed: f32,
+        course_deg: f32,
+        acc: f32,
+        dt: f32,
+    ) -> (Decision, f32) {
         let mp = ModeParams::default();
         let c = course_deg.to_radians();
-        let step = prepare(&mp, 0.5, st, speed * c.cos(), speed * c.sin(), acc, 0.2);
-        (commit(st, &step, &[0.0, 0.0, 0.0], 0.2), c)
+        let step = prepare(&mp, 0.5, st, speed * c.cos(), speed * c.sin(), acc, dt);
+        (commit(st, &step, &[0.0, 0.0, 0.0], dt), c)
     }
 
     /// `n` epochs of `no_acc` at one speed and course.
@@ -563,15 +574,6 @@ mod tests {
         );
     }
 
-    /// One 10 Hz epoch of a receiver without sAcc along `course_deg` at `speed`, filter
-    /// alone: the answer.
-    fn at_10hz(st: &mut StepState, speed: f32, course_deg: f32) -> Decision {
-        let mp = ModeParams::default();
-        let (s, c) = course_deg.to_radians().sin_cos();
-        let step = prepare(&mp, 0.5, st, speed * c, speed * s, f32::NAN, 0.1);
-        commit(st, &step, &[0.0, 0.0, 0.0], 0.1)
-    }
-
     /// A car standing at 84° reads, at 10 Hz, a glitch pair of 1 m/s along its axis
     /// backwards (confirmed and on the axis: taken for a back-out), then rest again,
     /// then a 4 m/s spike. The drop back to rest is braking ([`BRAKE_MAX`]), not a
@@ -580,6 +582,10 @@ mod tests {
     /// simulated NMEA car, whose next departure was then held on the wrong heading).
     #[test]
     fn a_car_back_at_rest_after_a_glitch_pair_keeps_its_heading() {
+        // One 10 Hz epoch of a receiver without sAcc: the answer.
+        let at_10hz = |st: &mut StepState, speed: f32, course: f32| {
+            epoch_dt(st, speed, course, f32::NAN, 0.1).0
+        };
         let mut st = StepState::fresh(Platform::Car);
         at_10hz(&mut st, 0.0, 84.0);
         for _ in 0..80 {

@@ -271,14 +271,15 @@ pub(super) fn glitch(
     // brakes harder than `a_max`: below `gate_speed` only `BRAKE_MAX` bounds it.
     let from_slow = st.vehicle.car && prev_speed <= mp.gate_speed;
     let gated = speed > mp.gate_speed || standing || from_slow;
-    // A car cannot change its velocity by more than `a_max` per second (plus the noise).
+    // A car cannot change its velocity by more than `a_max` per second (plus the noise),
+    // nor brake harder than `BRAKE_MAX`: whether the change outruns `accel` over `secs`.
     let change = (vn - prev[0]).hypot(ve - prev[1]);
-    let unreachable = |secs: f32| change > mp.a_max * secs + 3.0 * sig;
+    let unreachable = |accel: f32, secs: f32| change > accel * secs + 3.0 * sig;
     let braked_too_hard = st.vehicle.car
         && !standing
         && st.driving
         && speed < prev_speed
-        && change > BRAKE_MAX * dt + 3.0 * sig;
+        && unreachable(BRAKE_MAX, dt);
     let reject = if !(prev[0].is_finite() && dt > 0.0) {
         false
     } else if braked_too_hard {
@@ -299,7 +300,7 @@ pub(super) fn glitch(
             && (vn - pending[0]).hypot(ve - pending[1]) <= mp.a_max * dt + 3.0 * sig;
         st.pending_v = if moving { [vn, ve] } else { [f32::NAN; 2] };
         let sideways = off_axis_of_held(mp, st, vn, ve, p, r);
-        let reject = unreachable(elapsed)
+        let reject = unreachable(mp.a_max, elapsed)
             || (moving && (!confirmed || (sideways && elapsed <= mp.axis_secs)));
         if !reject && moving && sideways && st.vehicle.platform == Platform::Auto {
             // It kept leaving sideways: it turned in place, so it is no car (a car
@@ -317,7 +318,7 @@ pub(super) fn glitch(
         // A slow car coming down to rest brakes: only `BRAKE_MAX` bounds that.
         let braking = from_slow && speed < prev_speed && speed < RELEASE_SPEED;
         let limit = if braking { BRAKE_MAX } else { mp.a_max };
-        change > limit * secs + 3.0 * sig && st.skips < mp.max_skips
+        unreachable(limit, secs) && st.skips < mp.max_skips
     };
     if reject {
         st.skips = st.skips.saturating_add(1);
