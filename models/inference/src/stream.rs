@@ -1480,33 +1480,37 @@ mod tests {
     }
 
     /// A declared robot's `Stationary` answers (σ the uniform one) give each epoch's
-    /// course once it creeps steadily over twice its sAcc: from a cold start it creeps
-    /// at 0.4 m/s while the start rule still calls it standing, turning 3° an epoch. At
-    /// rest it answers the heading it holds, and so does a car creeping alike, and a
-    /// robot whose antenna's velocity turns 60° an epoch (a spin in place, not a course).
+    /// course once it creeps steadily over its sAcc: from a cold start it creeps at 0.4
+    /// m/s while the start rule still calls it standing, turning 3° an epoch, and so it
+    /// does at 0.3 m/s on a receiver whose sAcc is 0.2 m/s (under twice that, the bar
+    /// this rule once had). At rest it answers the heading it holds, and so does a car
+    /// creeping alike, and a robot whose antenna's velocity turns 60° an epoch (a spin
+    /// in place, not a course).
     #[test]
     fn a_stationary_robot_answers_its_steady_course_over_its_noise() {
         let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
+        // Platform, turn per epoch (°), creep speed (m/s), sAcc (m/s).
         let cases = [
-            (Platform::Robot, 3.0),
-            (Platform::Car, 3.0),
-            (Platform::Robot, 60.0),
+            (Platform::Robot, 3.0, 0.4, 0.05),
+            (Platform::Robot, 3.0, 0.3, 0.2),
+            (Platform::Car, 3.0, 0.4, 0.05),
+            (Platform::Robot, 60.0, 0.4, 0.05),
         ];
-        for (platform, turn) in cases {
+        for (platform, turn, speed, acc) in cases {
             let mut sp = StreamPredictor::new(model.clone()).with_platform(Some(platform));
             let mut h = sp.history();
-            let mut rx = Ublox::new(5.0, 3);
+            let mut rx = Ublox::noisy(5.0, 3, acc, 0.04);
             let rest: Vec<_> = (0..10)
                 .map(|_| sp.predict(&mut h, &rx.epoch([0.0, 0.0])))
                 .collect();
             let creep: Vec<_> = (0..15)
-                .map(|k| sp.predict(&mut h, &rx.epoch([0.4, 100.0 + turn * k as f32])))
+                .map(|k| sp.predict(&mut h, &rx.epoch([speed, 100.0 + turn * k as f32])))
                 .collect();
             let still: Vec<_> = creep
                 .iter()
                 .filter(|p| p.status == Status::Stationary)
                 .collect();
-            let what = format!("{platform} turning {turn}°: {rest:?} {creep:?}");
+            let what = format!("{platform} at {speed} m/s turning {turn}°: {rest:?} {creep:?}");
             assert!(still.len() >= 5, "{what}");
             let held = rest[0].heading_deg;
             assert!(rest.iter().all(|p| p.heading_deg == held), "{what}");
