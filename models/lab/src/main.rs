@@ -15,6 +15,7 @@ use ghnet_inference::simd::Kernel;
 use ghnet_inference::{Model, Platform, DEFAULT_MODEL};
 use ghnet_lab::make::{self, Recipe};
 use ghnet_lab::sim::{self, RealisticParams, S1Params};
+use ghnet_lab::temporal::MapName;
 use ghnet_lab::{receiver_log, replay};
 
 #[derive(Parser)]
@@ -131,6 +132,10 @@ enum Cmd {
         /// Output file.
         #[arg(long)]
         output: PathBuf,
+        /// Refit only these maps (comma-separated, named as in `ghnet info`'s
+        /// `sigma_map`) and keep the others; all when absent.
+        #[arg(long, value_enum, value_delimiter = ',')]
+        maps: Vec<MapName>,
     },
     /// Recompute the held-out metrics a temporal model stores (its recipe's test
     /// tracks, against the shipped kf) and write the model with them, weights
@@ -316,7 +321,18 @@ fn run(cli: Cli) -> Result<()> {
             format,
             platform,
         } => infer(&load_on(&model, platform)?, &input, &output, format),
-        Cmd::Calibrate { model, output } => make::temporal::calibrate_recipe_model(&model, &output),
+        Cmd::Calibrate {
+            model,
+            output,
+            maps,
+        } => {
+            let maps = if maps.is_empty() {
+                MapName::ALL.to_vec()
+            } else {
+                maps
+            };
+            make::temporal::calibrate_recipe_model(&model, &output, &maps)
+        }
         Cmd::Restamp { model, output } => make::temporal::restamp_recipe_model(&model, &output),
         Cmd::Export { model, output } => {
             let m = load(&model)?;

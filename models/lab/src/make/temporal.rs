@@ -16,7 +16,7 @@ use crate::drive::{self, DriveParams, Platform};
 use crate::logs::LogTrack;
 use crate::sim::Split;
 use crate::streval::{self, only};
-use crate::temporal::{self, TemporalConfig, TrainedTemporal};
+use crate::temporal::{self, MapName, TemporalConfig, TrainedTemporal};
 
 /// Everything that defines the shipped temporal model and `kf`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -193,14 +193,14 @@ pub fn train_temporal_recipe(
     Ok(())
 }
 
-/// `ghnet calibrate`: refit the σ maps of a temporal model on the training and
-/// validation tracks of the recipe it names, headings unchanged (what training does
-/// last, without training again).
-pub fn calibrate_recipe_model(model: &str, output: &Path) -> Result<()> {
+/// `ghnet calibrate`: refit the σ maps of a temporal model (those in `maps`, keeping
+/// the others) on the training and validation tracks of the recipe it names, headings
+/// unchanged (what training does last, without training again).
+pub fn calibrate_recipe_model(model: &str, output: &Path, maps: &[MapName]) -> Result<()> {
     let m = Model::from_name_or_path(model)?;
     let [tr, va, _] = TemporalRecipe::of(&m)?.tracks();
     let both: Vec<_> = tr.into_iter().chain(va).collect();
-    let out = crate::temporal::calibrate(m.params().clone(), m.meta().clone(), &both);
+    let out = crate::temporal::calibrate_maps(m.params().clone(), m.meta().clone(), &both, maps);
     std::fs::write(output, out.to_safetensors())
         .with_context(|| format!("writing {}", output.display()))?;
     eprintln!("wrote {}", output.display());

@@ -43,8 +43,8 @@ use crate::train::{fc_backward, fc_forward, AdamW, ConvStack, Mode};
 
 mod sigma;
 pub use sigma::{
-    calibrate, coverage, fit_sigma_map, mean_abs_deg, rescale_moving, shares_within, stream_errors,
-    Streamed,
+    calibrate, calibrate_maps, coverage, fit_sigma_map, mean_abs_deg, rescale_moving,
+    shares_within, stream_errors, MapName, Streamed,
 };
 
 /// Hyper-parameters of a temporal training run.

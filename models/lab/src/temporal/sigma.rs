@@ -70,6 +70,64 @@ pub fn stream_errors(model: &Arc<Model>, tracks: &[LogTrack]) -> Streamed {
     out
 }
 
+/// One of a temporal model's σ maps, named as in the model file's `sigma_map` (what
+/// `ghnet info` prints): `ghnet calibrate --maps` refits some and keeps the rest, so a
+/// choice to refit one map (the others' fits moving numbers that should be judged on
+/// their own) is a command anyone can rerun, not an edit of a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MapName {
+    /// Cars, moving ([`SigmaMaps::car`]).
+    #[value(name = "car")]
+    Car,
+    /// Other vehicles, moving ([`SigmaMaps::platform`]).
+    #[value(name = "platform")]
+    Platform,
+    /// Cars, standing ([`SigmaMaps::car_still`]).
+    #[value(name = "car_still")]
+    CarStill,
+    /// Cars, standing, clean receiver ([`SigmaMaps::car_still_clean`]).
+    #[value(name = "car_still_clean")]
+    CarStillClean,
+    /// Other vehicles, standing ([`SigmaMaps::platform_still`]).
+    #[value(name = "platform_still")]
+    PlatformStill,
+    /// Cars turning at speed ([`SigmaMaps::car_turn`]).
+    #[value(name = "car_turn")]
+    CarTurn,
+}
+
+impl MapName {
+    /// The epochs a class map is fitted on (car, moving, clean receiver: only a standing
+    /// car's map tells clean receivers apart), the share within 2σ it is fitted to, and
+    /// its label; `None` for the turn map, fitted on the class maps' σ.
+    fn class(self) -> Option<(bool, bool, bool, f64, &'static str)> {
+        Some(match self {
+            MapName::Car => (true, true, false, TARGET_2SIGMA, "cars, moving"),
+            MapName::Platform => (false, true, false, TARGET_2SIGMA, "others, moving"),
+            MapName::CarStill => (true, false, false, TARGET_2SIGMA_STOP, "cars, standing"),
+            MapName::CarStillClean => (
+                true,
+                false,
+                true,
+                TARGET_2SIGMA_STOP,
+                "cars, standing, clean receiver",
+            ),
+            MapName::PlatformStill => (false, false, false, TARGET_2SIGMA, "others, standing"),
+            MapName::CarTurn => return None,
+        })
+    }
+
+    /// Every map, in the order [`calibrate`] fits them.
+    pub const ALL: [MapName; 6] = [
+        MapName::Car,
+        MapName::Platform,
+        MapName::CarStill,
+        MapName::CarStillClean,
+        MapName::PlatformStill,
+        MapName::CarTurn,
+    ];
+}
+
 /// The model with its σ maps fitted on its streamed errors over `tracks` (the network
 /// and the filter as they are: headings do not change, only σ). The scatter floor
 /// ([`SigmaMaps::scatter_k`]) is kept and left out of the fit: it is for receivers
@@ -78,7 +136,20 @@ pub fn stream_errors(model: &Arc<Model>, tracks: &[LogTrack]) -> Streamed {
 /// minute of a vehicle not yet known to be a car and no platform standing) keeps the
 /// map `meta` had, the starting model's: fitted on a few dozen epochs, a map is that
 /// log's luck, and on none it is the identity (the raw σ, uncalibrated).
-pub fn calibrate(params: ParamSet, mut meta: ModelMeta, tracks: &[LogTrack]) -> Model {
+pub fn calibrate(params: ParamSet, meta: ModelMeta, tracks: &[LogTrack]) -> Model {
+    calibrate_maps(params, meta, tracks, &MapName::ALL)
+}
+
+/// [`calibrate`] for the maps in `only`; every other map is kept as `meta` has it. Each
+/// class map is fitted on the raw model's errors whatever the others are, so refitting
+/// one gives the map a whole calibration would; the turn map is fitted on the class
+/// maps the result has.
+pub fn calibrate_maps(
+    params: ParamSet,
+    mut meta: ModelMeta,
+    tracks: &[LogTrack],
+    only: &[MapName],
+) -> Model {
     // The raw model: identity maps (its σ is what the maps read), the choice of σ kept.
     let mut given = match &mut meta.kind {
         ModelKind::Temporal { sigma_map, .. } => {
@@ -98,43 +169,39 @@ pub fn calibrate(params: ParamSet, mut meta: ModelMeta, tracks: &[LogTrack]) -> 
         moving_without_y2,
         ..SigmaMaps::default()
     };
-    // (car, moving, clean receiver, share within 2σ to reach, label). Only a standing
-    // car's map tells clean receivers apart.
-    let classes = [
-        (true, true, false, TARGET_2SIGMA, "cars, moving"),
-        (false, true, false, TARGET_2SIGMA, "others, moving"),
-        (true, false, false, TARGET_2SIGMA_STOP, "cars, standing"),
-        (
-            true,
-            false,
-            true,
-            TARGET_2SIGMA_STOP,
-            "cars, standing, clean receiver",
-        ),
-        (false, false, false, TARGET_2SIGMA, "others, standing"),
-    ];
-    for (car, moving, clean, target, label) in classes {
+    for name in MapName::ALL {
+        let Some((car, moving, clean, target, label)) = name.class() else {
+            continue;
+        };
         let split = car && !moving;
         let of_class = |i: usize| {
             run.car[i] == car && run.moving[i] == moving && (!split || run.clean[i] == clean)
         };
-        *maps.map_mut(car, moving, clean) = if thin_class(&run, of_class, split, label) {
+        *maps.map_mut(car, moving, clean) = if !only.contains(&name) {
+            eprintln!("σ map ({label}): not asked for: kept as it was");
+            *given.map_mut(car, moving, clean)
+        } else if thin_class(&run, of_class, split, label) {
             *given.map_mut(car, moving, clean)
         } else {
             fit_class(&run, of_class, target, split, label)
         };
     }
     if yaw_s > 0.0 {
-        // The turn map, on the class maps' σ with the turn term (identity turn map),
-        // over the epochs that get it.
         maps.yaw_s = yaw_s;
-        let run = stream_errors(&Arc::new(with_maps(&params, &meta, maps)), tracks);
-        let of_class = |i: usize| run.car[i] && run.moving[i] && run.speed[i] >= TURN_SPEED;
         let label = "cars, moving, turn";
-        maps.car_turn = if thin_class(&run, of_class, false, label) {
+        maps.car_turn = if !only.contains(&MapName::CarTurn) {
+            eprintln!("σ map ({label}): not asked for: kept as it was");
             given.car_turn
         } else {
-            fit_class(&run, of_class, TARGET_2SIGMA, false, label)
+            // The turn map, on the class maps' σ with the turn term (identity turn map),
+            // over the epochs that get it.
+            let run = stream_errors(&Arc::new(with_maps(&params, &meta, maps)), tracks);
+            let of_class = |i: usize| run.car[i] && run.moving[i] && run.speed[i] >= TURN_SPEED;
+            if thin_class(&run, of_class, false, label) {
+                given.car_turn
+            } else {
+                fit_class(&run, of_class, TARGET_2SIGMA, false, label)
+            }
         };
     }
     maps.scatter_k = scatter_k;
@@ -577,7 +644,9 @@ mod tests {
     /// Calibrated on a short car log, the classes it hardly shows (a vehicle not yet
     /// known to be a car, platforms standing) keep the starting model's maps instead of
     /// maps fitted on a few dozen epochs or the identity, while the moving cars' map,
-    /// with thousands of epochs, is fitted anew.
+    /// with thousands of epochs, is fitted anew. Asked for that map alone
+    /// ([`calibrate_maps`], `ghnet calibrate --maps car`), it gets the same fit and the
+    /// turning cars' map, which the whole calibration refits too, stays.
     #[test]
     fn a_short_car_log_keeps_the_maps_of_classes_it_hardly_shows() {
         let p = crate::drive::DriveParams {
@@ -602,6 +671,30 @@ mod tests {
         assert_eq!(got.platform_still, was.platform_still);
         assert_ne!(got.car, was.car, "moving cars: fitted on the log");
         assert!(!got.car.is_identity());
+        // Asked for the moving cars' map alone, the same fit, and every other map as
+        // it was, the ones the log refits above included.
+        assert_ne!(
+            got.car_turn, was.car_turn,
+            "turning cars: fitted on the log"
+        );
+        let one = calibrate_maps(
+            shipped.params().clone(),
+            shipped.meta().clone(),
+            &tracks,
+            &[MapName::Car],
+        );
+        let ModelKind::Temporal { sigma_map: one, .. } = one.meta().kind else {
+            panic!("a temporal model");
+        };
+        assert_eq!(one.car, got.car);
+        assert_eq!(
+            SigmaMaps {
+                car: was.car,
+                ..one
+            },
+            was,
+            "only the moving cars' map refitted"
+        );
     }
 
     /// Long stops with small errors and many short ones with large errors, all with
