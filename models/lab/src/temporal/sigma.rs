@@ -70,28 +70,29 @@ pub fn stream_errors(model: &Arc<Model>, tracks: &[LogTrack]) -> Streamed {
     out
 }
 
-/// One of a temporal model's σ maps, named as in the model file's `sigma_map` (what
-/// `ghnet info` prints): `ghnet calibrate --maps` refits some and keeps the rest, so a
-/// choice to refit one map (the others' fits moving numbers that should be judged on
-/// their own) is a command anyone can rerun, not an edit of a file.
+/// One of a temporal model's σ maps (a field of [`SigmaMaps`]), named as in the model
+/// file's `sigma_map` (what `ghnet info` prints): `ghnet calibrate --maps` refits some
+/// and keeps the rest, so a choice to refit one map (the others' fits moving numbers
+/// that should be judged on their own) is a command anyone can rerun, not an edit of
+/// a file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum MapName {
-    /// Cars, moving ([`SigmaMaps::car`]).
+    /// Cars, moving.
     #[value(name = "car")]
     Car,
-    /// Other vehicles, moving ([`SigmaMaps::platform`]).
+    /// Other vehicles, moving.
     #[value(name = "platform")]
     Platform,
-    /// Cars, standing ([`SigmaMaps::car_still`]).
+    /// Cars, standing.
     #[value(name = "car_still")]
     CarStill,
-    /// Cars, standing, clean receiver ([`SigmaMaps::car_still_clean`]).
+    /// Cars, standing, on a clean receiver.
     #[value(name = "car_still_clean")]
     CarStillClean,
-    /// Other vehicles, standing ([`SigmaMaps::platform_still`]).
+    /// Other vehicles, standing.
     #[value(name = "platform_still")]
     PlatformStill,
-    /// Cars turning at speed ([`SigmaMaps::car_turn`]).
+    /// Cars turning at speed.
     #[value(name = "car_turn")]
     CarTurn,
 }
