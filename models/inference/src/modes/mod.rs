@@ -137,10 +137,7 @@ mod tests {
 
     /// [`along`] on a receiver reporting sAcc `acc` (m/s).
     fn along_acc(st: &mut StepState, speed: f32, course_deg: f32, acc: f32) -> Decision {
-        let mp = ModeParams::default();
-        let (s, c) = course_deg.to_radians().sin_cos();
-        let step = prepare(&mp, 0.5, st, speed * c, speed * s, acc, 1.0);
-        commit(st, &step, &[0.0, 0.0, 0.0], 1.0)
+        epoch_dt(st, speed, course_deg, acc, 1.0).0
     }
 
     /// The yaw rate follows a steady turn, fades on a straight and is 0 once stopped,

@@ -76,24 +76,19 @@ pub fn stream_errors(model: &Arc<Model>, tracks: &[LogTrack]) -> Streamed {
 /// that should be judged on their own) is a command anyone can rerun, not an edit of
 /// a file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[value(rename_all = "snake_case")]
 pub enum MapName {
     /// Cars, moving.
-    #[value(name = "car")]
     Car,
     /// Other vehicles, moving.
-    #[value(name = "platform")]
     Platform,
     /// Cars, standing.
-    #[value(name = "car_still")]
     CarStill,
     /// Cars, standing, on a clean receiver.
-    #[value(name = "car_still_clean")]
     CarStillClean,
     /// Other vehicles, standing.
-    #[value(name = "platform_still")]
     PlatformStill,
     /// Cars turning at speed.
-    #[value(name = "car_turn")]
     CarTurn,
 }
 
