@@ -270,7 +270,28 @@ pub fn to_bytes(params: &ParamSet, meta: &ModelMeta) -> Vec<u8> {
         };
         md.insert(k.clone(), s);
     }
-    safetensors::serialize(tensors, Some(md)).expect("safetensors serialisation")
+    let bytes = safetensors::serialize(tensors, Some(md)).expect("safetensors serialisation");
+    with_sorted_header(bytes)
+}
+
+/// The same file with its header's keys in sorted order. `safetensors` writes the
+/// metadata from a `HashMap`, whose order changes from one process to the next, so
+/// equal models made unequal files (a restamp that changed nothing still changed the
+/// shipped weights in git, and comparing two models took parsing both). The sorted
+/// header is the same JSON reordered, so its length, the padding after it and every
+/// tensor's offsets stay as they were.
+fn with_sorted_header(mut bytes: Vec<u8>) -> Vec<u8> {
+    let mut len = [0u8; 8];
+    len.copy_from_slice(&bytes[..8]);
+    let end = 8 + u64::from_le_bytes(len) as usize;
+    // `serde_json`'s maps are ordered by key (the `preserve_order` feature is off).
+    let header: serde_json::Value =
+        serde_json::from_slice(&bytes[8..end]).expect("safetensors writes a JSON header");
+    let sorted = serde_json::to_vec(&header).expect("JSON serialises");
+    assert!(8 + sorted.len() <= end, "a reordered header is no longer");
+    bytes[8..8 + sorted.len()].copy_from_slice(&sorted);
+    bytes[8 + sorted.len()..end].fill(b' ');
+    bytes
 }
 
 /// Parse safetensors bytes into weights and metadata, validating every tensor against the
@@ -554,6 +575,19 @@ mod tests {
         let (p2, m2) = from_bytes(&bytes).unwrap();
         assert_eq!(p.data(), p2.data());
         assert_eq!(m, m2);
+    }
+
+    /// Equal models make equal files: each `HashMap` the metadata passes through
+    /// iterates in its own order, so without sorting, two writes differ.
+    #[test]
+    fn a_model_writes_the_same_bytes_every_time() {
+        let (p, m) = sample();
+        let first = to_bytes(&p, &m);
+        for _ in 0..4 {
+            assert_eq!(to_bytes(&p, &m), first);
+        }
+        let (_, header) = SafeTensors::read_metadata(&first).unwrap();
+        assert!(header.metadata().as_ref().is_some_and(|md| md.len() > 5));
     }
 
     fn rewrite(
