@@ -2,6 +2,7 @@
 //! to the step, the heading, the yaw rate and the clocks updated.
 
 use super::state::{Step, StepState};
+use super::vehicle::{Platform, TURN_IN_PLACE_DEG, TURN_RUN_S, TURN_STAND_S, TURN_SURE_DEG};
 use crate::head::{facing, wrap_rad, MAX_STD_DEG};
 
 /// Logit the rule's reverse decision contributes (`+` reversing, `−` forward): the
@@ -101,10 +102,48 @@ pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
     st.psi = wrap_rad(psi);
     st.log_sigma = log_sigma.min(cap.ln());
     st.has_prior = true;
+    watch_turn_in_place(st, step);
     Decision {
         psi: psi + lead(st, step, dt),
         log_sigma: st.log_sigma,
         gain,
+    }
+}
+
+/// Whether an `auto` vehicle not known to be a car turned in place
+/// ([`Vehicle::turns`]): after a stand of [`TURN_STAND_S`], its departure points off
+/// the axis of the heading it stood with, and keeps on for [`TURN_RUN_S`] (a glitch
+/// burst does not). That heading is the last of a run of steady motion as long.
+///
+/// [`Vehicle::turns`]: super::vehicle::Vehicle::turns
+fn watch_turn_in_place(st: &mut StepState, step: &Step) {
+    if st.vehicle.car || st.vehicle.platform != Platform::Auto {
+        // A car's heading is not watched: a demoted car starts afresh.
+        (st.stand_psi, st.stood, st.turn_seen) = (f32::NAN, false, false);
+        return;
+    }
+    if !step.moving || step.glitch {
+        st.stood |= st.t_still >= TURN_STAND_S && st.stand_psi.is_finite();
+        st.turn_seen = false;
+        return;
+    }
+    if !st.released() {
+        st.turn_seen = false;
+        return;
+    }
+    if st.stood {
+        let d = wrap_rad(step.course - st.stand_psi).abs();
+        st.turn_seen = d.min(std::f32::consts::PI - d) > TURN_IN_PLACE_DEG.to_radians();
+        st.stood = false;
+    }
+    if st.motion.t >= TURN_RUN_S {
+        st.vehicle.turns |= st.turn_seen;
+        st.turn_seen = false;
+        st.stand_psi = if st.log_sigma < TURN_SURE_DEG.to_radians().ln() {
+            st.psi
+        } else {
+            f32::NAN
+        };
     }
 }
 

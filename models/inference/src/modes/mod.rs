@@ -22,7 +22,9 @@
 //!   turns in place: its heading random-walks while it stands (`q_tip`), there is no
 //!   reverse mode, and slow motion is trusted. A car's heading random-walks only with
 //!   distance driven, as much as its steering allows (`k_max`, `a_lat`), so a stopped
-//!   car holds its heading exactly.
+//!   car holds its heading exactly. One that leaves a stand off the axis it stood on
+//!   and keeps going has shown that it turns in place ([`Vehicle::turns`]): at its
+//!   stands, a steady creep is answered with its course, as a declared robot's is.
 //! * **Receivers lie.** The measurement σ is the receiver's noise over the speed, with
 //!   the noise taken as the larger of the reported sAcc and a running estimate from the
 //!   speeds the receiver reports when slow (a low quantile: a stopped vehicle's speed is
@@ -97,6 +99,7 @@ pub use start::START_S;
 pub use state::{HeldHeading, MotionRun, Step, StepState};
 pub use vehicle::{
     Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED, HOLD_MIN_ZEROS, HOLD_ZEROS_PER_CREEP,
+    TURN_IN_PLACE_DEG, TURN_RUN_S, TURN_STAND_S, TURN_SURE_DEG,
 };
 
 #[cfg(test)]
@@ -693,6 +696,48 @@ mod tests {
         }
         let rms = |s: f32| (s / n as f32).sqrt().to_degrees();
         (rms(sa), rms(sc))
+    }
+
+    /// An `auto` vehicle at robot speeds (never a car) that drives, stands and drives
+    /// off `off_deg` from the way it went, at 5 Hz with sAcc 0.05 m/s; then, when
+    /// `burst`, a run of glitches as long as the release rule's second and under
+    /// [`TURN_RUN_S`] instead of a departure: whether it was taken to turn in place.
+    fn turned_in_place(off_deg: f32, burst: bool) -> StepState {
+        let mut st = StepState::EMPTY;
+        run_acc(&mut st, 10, 0.0, 0.0, 0.05);
+        run_acc(&mut st, 25, 1.5, 0.0, 0.05);
+        run_acc(&mut st, 10, 0.0, 0.0, 0.05);
+        if burst {
+            run_acc(&mut st, 8, 1.5, off_deg, 0.05);
+            run_acc(&mut st, 20, 0.0, 0.0, 0.05);
+        } else {
+            run_acc(&mut st, 20, 1.5, off_deg, 0.05);
+        }
+        st
+    }
+
+    /// A vehicle that leaves a stand off the axis it stood on, and keeps going, turned in
+    /// place: an `auto` vehicle not known to be a car is then answered as a robot at its
+    /// stands (a steady creep gives its course). Leaving along the axis, backing up, or
+    /// a glitch burst off it, shows nothing.
+    #[test]
+    fn a_departure_off_the_axis_shows_a_turn_in_place() {
+        let mp = ModeParams::default();
+        let creep = ([0.0, 0.3], [0.0, 0.3]);
+        for (off, burst, turns) in [
+            (90.0, false, true),
+            (-60.0, false, true),
+            (10.0, false, false),
+            (180.0, false, false),
+            (90.0, true, false),
+        ] {
+            let st = turned_in_place(off, burst);
+            let what = format!("{off}° off, burst {burst}: {st:?}");
+            assert!(!st.vehicle.car, "{what}");
+            assert_eq!(st.vehicle.turns, turns, "{what}");
+            let answered = stationary_course(&mp, &st.vehicle, creep.0, creep.1, 0.05);
+            assert_eq!(answered, turns, "{what}");
+        }
     }
 
     /// A moving platform does not spin, so at 5 Hz its filter averages successive

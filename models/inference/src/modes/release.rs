@@ -456,18 +456,26 @@ pub(super) fn track_motion(
     }
 }
 
-/// Whether a `Stationary` answer (σ the uniform one: no heading known) of `vehicle`
-/// gives this epoch's course (velocity `v`, m/s north and east) rather than the
-/// heading the history holds. Only for a declared [`Platform::Robot`]: it turns in
+/// Whether a `Stationary` answer (no heading known) of `vehicle` gives this epoch's
+/// course (velocity `v`, m/s north and east), with σ [`SENSE_SIGMA_DEG`] (a creep may
+/// be a back-up), rather than the heading the history holds with the uniform σ.
+///
+/// Only for a declared [`Platform::Robot`], or an `auto` vehicle not known to be a
+/// car that has shown it turns in place ([`Vehicle::turns`]): such a platform turns in
 /// place at its stops, so what it holds is stale, while a car's held heading is right
-/// however it creeps or reverses. Only when `v` and the velocity the epoch before used
-/// (`prev_v`) are both over [`ROBOT_COURSE_NOISE_K`] times the receiver's noise
-/// (`acc`, the sAcc, NaN when absent; else the noise measured at rest) and point
-/// within [`RELEASE_COURSE_DEG`] of each other: a creeping robot's velocity keeps
-/// its direction, a noisy receiver at rest before its noise is measured does not
-/// for long, and neither does the velocity a spin in place gives an antenna off
-/// its axis. Without that steadiness, a cold start on a noisy NMEA receiver and a
-/// robot spinning at 1 Hz were answered sideways.
+/// however it creeps or reverses. (Every `auto` vehicle not known to be a car, from
+/// its cold start, made the car sections of models/reports/unmet.md worse: half the
+/// simulated cars back out of their space first, answered a half turn off.)
+///
+/// Only when `v` and the velocity the epoch before used (`prev_v`) are both over
+/// [`ROBOT_COURSE_NOISE_K`] times the receiver's noise (`acc`, the sAcc, NaN when
+/// absent; else the noise measured at rest) and point within [`RELEASE_COURSE_DEG`]
+/// of each other: a creeping robot's velocity keeps its direction, a noisy receiver at
+/// rest before its noise is measured does not for long, and neither does the velocity
+/// a spin in place gives an antenna off its axis. Without that steadiness, a cold
+/// start on a noisy NMEA receiver and a robot spinning at 1 Hz were answered sideways.
+///
+/// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
 #[inline]
 pub fn stationary_course(
     mp: &ModeParams,
@@ -476,7 +484,8 @@ pub fn stationary_course(
     prev_v: [f32; 2],
     acc: f32,
 ) -> bool {
-    if vehicle.platform != Platform::Robot {
+    let turns = vehicle.platform == Platform::Auto && !vehicle.car && vehicle.turns;
+    if vehicle.platform != Platform::Robot && !turns {
         return false;
     }
     let noise = if acc.is_finite() {

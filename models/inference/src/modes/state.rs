@@ -134,6 +134,24 @@ pub struct StepState {
     /// give that heading, not the first course of its receiver's noise, until its
     /// course carries information. (A platform may have turned in place.)
     pub stale_psi: f32,
+    /// The heading (radians) an `auto` vehicle not known to be a car drove on, sure
+    /// ([`TURN_SURE_DEG`]), at the last epoch of a run of steady motion
+    /// [`TURN_RUN_S`] long; NaN when none. Kept through a stand, it is what the
+    /// departure is compared with ([`Vehicle::turns`]).
+    ///
+    /// [`TURN_SURE_DEG`]: crate::modes::TURN_SURE_DEG
+    /// [`TURN_RUN_S`]: crate::modes::TURN_RUN_S
+    pub stand_psi: f32,
+    /// Whether the vehicle has stood [`TURN_STAND_S`] since `stand_psi`, its departure
+    /// not yet compared.
+    ///
+    /// [`TURN_STAND_S`]: crate::modes::TURN_STAND_S
+    pub stood: bool,
+    /// Whether the departure after that stand left off the axis of `stand_psi`, not
+    /// yet confirmed by [`TURN_RUN_S`] of steady motion.
+    ///
+    /// [`TURN_RUN_S`]: crate::modes::TURN_RUN_S
+    pub turn_seen: bool,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
 }
@@ -173,6 +191,9 @@ impl StepState {
         sense_doubt: false,
         approach: Approach::EMPTY,
         stale_psi: f32::NAN,
+        stand_psi: f32::NAN,
+        stood: false,
+        turn_seen: false,
         vehicle: Vehicle::UNKNOWN,
     };
 

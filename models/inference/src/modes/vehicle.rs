@@ -21,13 +21,34 @@ pub const HOLD_MIN_ZEROS: u32 = 5;
 /// Fewest epochs above `fast_speed` that make a vehicle a car.
 pub const FAST_EPOCHS: u16 = 5;
 
+/// Degrees off the axis of the heading an `auto` vehicle not known to be a car stood
+/// with (neither along it nor against it) by which its departure must leave to show
+/// that it turned in place ([`Vehicle::turns`]). A car that backs out, or drives off
+/// into a turn, has turned by much less a second after it set off; a robot's spin at
+/// a stop is any angle.
+pub const TURN_IN_PLACE_DEG: f32 = 45.0;
+
+/// Seconds of standing after which a departure is compared with the heading stood with.
+pub const TURN_STAND_S: f32 = 1.0;
+
+/// Seconds of steady motion (the release rule's run) that confirm a departure off the
+/// axis, and that a run must last for its heading to be the one a later departure is
+/// compared with. A glitch burst at a stand, which the release rule may take for a
+/// departure, lasts a few epochs: compared after the release rule's second, such
+/// bursts took simulated 1 Hz cars for robots.
+pub const TURN_RUN_S: f32 = 3.0;
+
+/// Largest σ (degrees, the filter's) of a heading a departure is compared with.
+pub const TURN_SURE_DEG: f32 = 20.0;
+
 /// What carries the receiver: whether the mode filter may take it for a car, and
 /// whether it may turn in place. Set per source; `Auto` decides online.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Platform {
     /// Decide online: a vehicle that drives fast for a while is a car until it leaves a
-    /// stand sideways (it turned in place).
+    /// stand sideways (it turned in place); one that is no car and leaves a stand off
+    /// its axis is answered at its stands as a robot ([`Vehicle::turns`]).
     #[default]
     Auto,
     /// A car, truck or van: reverses, never turns in place, holds its heading at a stop.
@@ -91,6 +112,14 @@ pub struct Vehicle {
     pub zeros: u32,
     /// Epochs the receiver reported a speed above zero and below [`HOLD_CREEP_SPEED`].
     pub creeps: u32,
+    /// Whether a [`Platform::Auto`] vehicle, while not known to be a car, has left a
+    /// stand off the axis of the heading it stood with ([`TURN_IN_PLACE_DEG`]) and
+    /// kept going ([`TURN_RUN_S`]): it turns in place, so what it holds at a stop may
+    /// be stale, as a declared robot's is, and its `Stationary` answers follow a steady
+    /// creep as a robot's do ([`stationary_course`]).
+    ///
+    /// [`stationary_course`]: crate::modes::stationary_course
+    pub turns: bool,
 }
 
 impl Vehicle {
@@ -102,6 +131,7 @@ impl Vehicle {
         platform: Platform::Auto,
         zeros: 0,
         creeps: 0,
+        turns: false,
     };
 
     /// Record what one epoch's speed says about a static hold (a speed of exactly zero
