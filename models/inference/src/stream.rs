@@ -1484,12 +1484,11 @@ mod tests {
 
     /// A declared robot's `Stationary` answers give each epoch's course, with a σ whose
     /// two reach the half turn, once it creeps steadily over its sAcc (otherwise they
-    /// hold, σ the uniform one): from a cold start it creeps at 0.4
-    /// m/s while the start rule still calls it standing, turning 3° an epoch, and so it
-    /// does at 0.3 m/s on a receiver whose sAcc is 0.2 m/s (under twice that, the bar
-    /// this rule once had). At rest it answers the heading it holds, and so does a car
-    /// creeping alike, and a robot whose antenna's velocity turns 60° an epoch (a spin
-    /// in place, not a course).
+    /// hold, σ the uniform one): from a cold start it creeps at 0.4 m/s while the start
+    /// rule still calls it standing, turning 3° an epoch, and so it does at 0.3 m/s on a
+    /// receiver whose sAcc is 0.2 m/s (under twice that, the bar this rule once had).
+    /// At rest it answers the heading it holds, and so does a car creeping alike, and a
+    /// robot whose antenna's velocity turns 60° an epoch (a spin in place, not a course).
     #[test]
     fn a_stationary_robot_answers_its_steady_course_over_its_noise() {
         let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
