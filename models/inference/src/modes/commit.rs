@@ -1,6 +1,7 @@
 //! The second half of an epoch: the network's gain, reverse and σ corrections applied
 //! to the step, the heading, the yaw rate and the clocks updated.
 
+use super::release::off_axis;
 use super::state::{Step, StepState};
 use super::vehicle::{Platform, TURN_IN_PLACE_DEG, TURN_RUN_S, TURN_STAND_S, TURN_SURE_DEG};
 use crate::head::{facing, wrap_rad, MAX_STD_DEG};
@@ -132,8 +133,7 @@ fn watch_turn_in_place(st: &mut StepState, step: &Step) {
         return;
     }
     if st.stood {
-        let d = wrap_rad(step.course - st.stand_psi).abs();
-        st.turn_seen = d.min(std::f32::consts::PI - d) > TURN_IN_PLACE_DEG.to_radians();
+        st.turn_seen = off_axis(step.course, st.stand_psi) > TURN_IN_PLACE_DEG.to_radians();
         st.stood = false;
     }
     if st.motion.t >= TURN_RUN_S {

@@ -354,9 +354,15 @@ fn off_axis_of_held(mp: &ModeParams, st: &StepState, vn: f32, ve: f32, p: f32, r
     if !mp.sure(p) {
         return false;
     }
-    let off = wrap_rad(ve.atan2(vn) - st.psi).abs();
-    let off_axis = off.min(std::f32::consts::PI - off);
-    off_axis > mp.axis_deg.to_radians() + 2.0 * r
+    off_axis(ve.atan2(vn), st.psi) > mp.axis_deg.to_radians() + 2.0 * r
+}
+
+/// How far (radians, 0 to π/2) a course points off the axis of `heading`, ahead or
+/// behind alike: a vehicle leaving along its axis may drive forward or back up.
+#[inline]
+pub(super) fn off_axis(course: f32, heading: f32) -> f32 {
+    let off = wrap_rad(course - heading).abs();
+    off.min(std::f32::consts::PI - off)
 }
 
 /// Whether `st` is a standing car whose held heading is unsure ([`UNSURE_HELD_DEG`]).

@@ -136,8 +136,8 @@ pub struct StepState {
     pub stale_psi: f32,
     /// The heading (radians) an `auto` vehicle not known to be a car drove on, sure
     /// ([`TURN_SURE_DEG`]), at the last epoch of a run of steady motion at least
-    /// [`TURN_RUN_S`] long; NaN when none or not sure. Kept through a stand, it is what the
-    /// departure is compared with ([`Vehicle::turns`]).
+    /// [`TURN_RUN_S`] long; NaN when none or not sure. Kept through a stand, it is what
+    /// the departure is compared with ([`Vehicle::turns`]).
     ///
     /// [`TURN_SURE_DEG`]: crate::modes::TURN_SURE_DEG
     /// [`TURN_RUN_S`]: crate::modes::TURN_RUN_S
