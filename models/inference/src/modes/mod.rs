@@ -17,12 +17,13 @@
 //!   drives off the other way is driving forward. Such a departure may also be backing
 //!   up, and its σ says so ([`StepState::sense_doubt`]).
 //! * **Cars do not turn in place; platforms do.** A vehicle counts as a car once it has
-//!   driven above `fast_speed` for `fast_secs` and `FAST_EPOCHS` epochs (kept across
-//!   fix gaps: it is the same vehicle). Until then it is treated as a platform that
-//!   turns in place: its heading random-walks while it stands (`q_tip`), there is no
-//!   reverse mode, and slow motion is trusted. A car's heading random-walks only with
-//!   distance driven, as much as its steering allows (`k_max`, `a_lat`), so a stopped
-//!   car holds its heading exactly. One that leaves a stand off the axis it stood on
+//!   driven above `fast_speed` for `fast_secs` and `FAST_EPOCHS` epochs, the first of
+//!   them turned from the slower course before no more than a car steers
+//!   ([`STEER_IN_NOISE_K`]; kept across fix gaps: it is the same vehicle). Until then
+//!   it is treated as a platform that turns in place: its heading random-walks while
+//!   it stands (`q_tip`), there is no reverse mode, and slow motion is trusted. A
+//!   car's heading random-walks only with distance driven, as much as its steering
+//!   allows (`k_max`, `a_lat`), so a stopped car holds its heading exactly. One that leaves a stand off the axis it stood on
 //!   and keeps going has shown that it turns in place ([`Vehicle::turns`]): at its
 //!   stands, a steady creep is answered with its course, as a declared robot's is.
 //! * **Receivers lie.** The measurement σ is the receiver's noise over the speed, with
@@ -80,7 +81,7 @@ pub use commit::{
 };
 pub(crate) use noise::random_walk_variance;
 pub use params::{ModeParams, LEVER_M};
-pub use prepare::{prepare, ESCAPE_NOISE_K};
+pub use prepare::{prepare, ESCAPE_NOISE_K, STEER_IN_NOISE_K};
 pub use release::{
     stationary_course, BRAKE_MAX, RELEASE_CONT_ACC_K, RELEASE_CONT_NOISE_K, RELEASE_COURSE_DEG,
     RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP,
@@ -130,6 +131,24 @@ mod tests {
             epoch(&mut st, speed);
         }
         assert!(!st.vehicle.car, "a stand ends the run: {st:?}");
+    }
+
+    /// Fast epochs that start by turning off a creep's course further than a car
+    /// steers (a glitch burst at 1 Hz) make no car; the same epochs along the creep's
+    /// course do. A robot creeping at 0.64 m/s (sAcc 0.168 m/s), then five epochs at
+    /// 3.6 m/s, 92° off (the burst of a simulated u-blox robot) or 14° off.
+    #[test]
+    fn a_burst_turning_off_a_creep_makes_no_car() {
+        for (course, car) in [(158.0, false), (80.0, true)] {
+            let mut st = StepState::EMPTY;
+            for _ in 0..5 {
+                epoch_dt(&mut st, 0.64, 66.0, 0.168, 1.0);
+            }
+            for _ in 0..5 {
+                epoch_dt(&mut st, 3.6, course, 0.168, 1.0);
+            }
+            assert_eq!(st.vehicle.car, car, "{course}°: {st:?}");
+        }
     }
 
     /// One 1 Hz epoch along `course_deg` at `speed` (sAcc 0.1 m/s), filter alone: the
