@@ -566,7 +566,7 @@ impl StreamPredictor {
         let mut p = self.finish(psi, std, pending.had_prior, standing, fed, pending.epoch);
         let [vn, ve, _, acc] = pending.epoch;
         if p.status == Status::Stationary
-            && stationary_course(modes, &h.state.vehicle, [vn, ve], prev_v, acc)
+            && stationary_course(modes, &h.state.vehicle, [vn, ve], prev_v, acc, pending.dt)
         {
             // The course of a creep may be a back-up's, a half turn off: two σ reach it
             // (as for any answer whose sense is unknown). On the simulated robots of

@@ -86,7 +86,7 @@ pub use release::{
     stationary_course, BRAKE_MAX, RELEASE_CONT_ACC_K, RELEASE_CONT_NOISE_K, RELEASE_COURSE_DEG,
     RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP,
     RELEASE_NOISE_CAP_LOW_RATE, RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED,
-    ROBOT_COURSE_NOISE_K, TURN_SPEED_CHANGE, UNSURE_HELD_DEG,
+    ROBOT_COURSE_NOISE_K, ROBOT_COURSE_TURN_DEG_S, TURN_SPEED_CHANGE, UNSURE_HELD_DEG,
 };
 pub use scatter::{
     extrapolation_share, SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED,
@@ -754,9 +754,30 @@ mod tests {
             let what = format!("{off}° off, burst {burst}: {st:?}");
             assert!(!st.vehicle.car, "{what}");
             assert_eq!(st.vehicle.turns, turns, "{what}");
-            let answered = stationary_course(&mp, &st.vehicle, creep.0, creep.1, 0.05);
+            let answered = stationary_course(&mp, &st.vehicle, creep.0, creep.1, 0.05, 0.2);
             assert_eq!(answered, turns, "{what}");
         }
+    }
+
+    /// A robot's creep in an arc may turn its course by 50° between two epochs a second
+    /// apart and is answered with its course; 0.2 s apart, 50° is no creep's turn. A
+    /// velocity that reverses between epochs never is.
+    #[test]
+    fn a_robots_creep_may_turn_between_slow_epochs() {
+        let mp = ModeParams::default();
+        let robot = StepState::fresh(Platform::Robot).vehicle;
+        let (s, c) = 50f32.to_radians().sin_cos();
+        let (before, now) = ([0.3, 0.0], [0.3 * c, 0.3 * s]);
+        assert!(stationary_course(&mp, &robot, now, before, 0.05, 1.0));
+        assert!(!stationary_course(&mp, &robot, now, before, 0.05, 0.2));
+        assert!(!stationary_course(
+            &mp,
+            &robot,
+            [-0.3, 0.0],
+            before,
+            0.05,
+            1.0
+        ));
     }
 
     /// A moving platform does not spin, so at 5 Hz its filter averages successive

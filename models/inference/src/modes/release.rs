@@ -124,12 +124,30 @@ pub const TURN_SPEED_CHANGE: f32 = 0.5;
 /// most; under it (half the noise, or none) RTKLIB and NMEA robots lost.
 pub const ROBOT_COURSE_NOISE_K: f32 = 1.0;
 
-/// Whether velocities `a` and `b` point within [`RELEASE_COURSE_DEG`] of each other,
-/// from their dot and cross products (no arctangent on the streaming path).
+/// How far (°/s) a creeping platform's course may turn from one epoch to the next
+/// beyond [`RELEASE_COURSE_DEG`], for a `Stationary` answer to give it
+/// ([`stationary_course`]): robots turn at 20–60°/s, so at 1 Hz two courses of a
+/// real creep in an arc lie further apart than a 5 or 10 Hz receiver's. With the
+/// bare 30°, 1 Hz robots held a stale heading through such creeps; widened by 45°/s
+/// (75° at 1 Hz, 39° at 5 Hz), every 1 Hz robot section of models/reports/unmet.md
+/// and of 100 drives of other seeds got better or stayed (by up to 0.5% with
+/// `--platform robot`), the 5 and 10 Hz sections moved by at most 0.03% either way,
+/// and no car section moved (60°/s gained no more). Noise at rest seldom passes: both
+/// speeds must be over the receiver's noise.
+pub const ROBOT_COURSE_TURN_DEG_S: f32 = 45.0;
+
+/// Whether velocities `a` and `b` point within [`RELEASE_COURSE_DEG`] of each other.
 #[inline]
 fn same_course(a: [f32; 2], b: [f32; 2]) -> bool {
+    within_deg(a, b, RELEASE_COURSE_DEG)
+}
+
+/// Whether velocities `a` and `b` point within `deg` (under 90) degrees of each other,
+/// from their dot and cross products (no arctangent on the streaming path).
+#[inline]
+fn within_deg(a: [f32; 2], b: [f32; 2], deg: f32) -> bool {
     let (dot, cross) = (a[0] * b[0] + a[1] * b[1], a[0] * b[1] - a[1] * b[0]);
-    dot > 0.0 && cross.abs() <= dot * RELEASE_COURSE_DEG.to_radians().tan()
+    dot > 0.0 && cross.abs() <= dot * deg.to_radians().tan()
 }
 
 /// What an epoch did to the run of plain motion ([`StepState::motion`]).
@@ -473,13 +491,15 @@ pub(super) fn track_motion(
 /// its cold start, made the car sections of models/reports/unmet.md worse: half the
 /// simulated cars back out of their space first, answered a half turn off.)
 ///
-/// Only when `v` and the velocity the epoch before used (`prev_v`) are both over
-/// [`ROBOT_COURSE_NOISE_K`] times the receiver's noise (`acc`, the sAcc, NaN when
-/// absent; else the noise measured at rest) and point within [`RELEASE_COURSE_DEG`]
-/// of each other: a creeping robot's velocity keeps its direction, a noisy receiver at
-/// rest before its noise is measured does not for long, and neither does the velocity
-/// a spin in place gives an antenna off its axis. Without that steadiness, a cold
-/// start on a noisy NMEA receiver and a robot spinning at 1 Hz were answered sideways.
+/// Only when `v` and the velocity the epoch before used (`prev_v`, `dt` seconds
+/// earlier) are both over [`ROBOT_COURSE_NOISE_K`] times the receiver's noise (`acc`,
+/// the sAcc, NaN when absent; else the noise measured at rest) and point within
+/// [`RELEASE_COURSE_DEG`] plus [`ROBOT_COURSE_TURN_DEG_S`] over `dt` of each other
+/// (at most 85°): a creeping robot's velocity keeps its direction, or turns it as
+/// fast as a robot turns, a noisy receiver at rest before its noise is measured does
+/// not for long, and neither does the velocity a spin in place gives an antenna off
+/// its axis. Without that steadiness, a cold start on a noisy NMEA receiver and a
+/// robot spinning at 1 Hz were answered sideways.
 ///
 /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
 #[inline]
@@ -489,6 +509,7 @@ pub fn stationary_course(
     v: [f32; 2],
     prev_v: [f32; 2],
     acc: f32,
+    dt: f32,
 ) -> bool {
     let turns = vehicle.platform == Platform::Auto && !vehicle.car && vehicle.turns;
     if vehicle.platform != Platform::Robot && !turns {
@@ -500,5 +521,6 @@ pub fn stationary_course(
         mp.rest_noise(vehicle)
     };
     let bar = ROBOT_COURSE_NOISE_K * noise;
-    v[0].hypot(v[1]) > bar && prev_v[0].hypot(prev_v[1]) > bar && same_course(prev_v, v)
+    let turn = (RELEASE_COURSE_DEG + ROBOT_COURSE_TURN_DEG_S * dt.max(0.0)).min(85.0);
+    v[0].hypot(v[1]) > bar && prev_v[0].hypot(prev_v[1]) > bar && within_deg(prev_v, v, turn)
 }
