@@ -23,9 +23,10 @@
 //!   it is treated as a platform that turns in place: its heading random-walks while
 //!   it stands (`q_tip`), there is no reverse mode, and slow motion is trusted. A
 //!   car's heading random-walks only with distance driven, as much as its steering
-//!   allows (`k_max`, `a_lat`), so a stopped car holds its heading exactly. One that leaves a stand off the axis it stood on
-//!   and keeps going has shown that it turns in place ([`Vehicle::turns`]): at its
-//!   stands, a steady creep is answered with its course, as a declared robot's is.
+//!   allows (`k_max`, `a_lat`), so a stopped car holds its heading exactly. One that
+//!   leaves a stand off the axis it stood on and keeps going has shown that it turns in
+//!   place ([`Vehicle::turns`]): at its stands, a steady creep is answered with its
+//!   course, as a declared robot's is.
 //! * **Receivers lie.** The measurement σ is the receiver's noise over the speed, with
 //!   the noise taken as the larger of the reported sAcc and a running estimate from the
 //!   speeds the receiver reports when slow (a low quantile: a stopped vehicle's speed is
