@@ -149,8 +149,10 @@ fn direction_rules(
     let fast = speed > mp.escape_speed + noise
         && st.prev_speed > 0.7 * mp.escape_speed + noise
         && dt <= 2.0;
-    let starts = st.n_fast > 0 || steers_in(mp, st, course, speed, sig, dt);
-    (st.t_fast, st.n_fast) = if speed > mp.fast_speed && starts {
+    // Only a fast epoch that would start a run is checked: slow ones end it anyway.
+    let counts =
+        speed > mp.fast_speed && (st.n_fast > 0 || steers_in(mp, st, course, speed, sig, dt));
+    (st.t_fast, st.n_fast) = if counts {
         (st.t_fast + dt, st.n_fast.saturating_add(1))
     } else {
         (0.0, 0)
