@@ -42,6 +42,12 @@ pub struct StepState {
     pub prev_speed: f32,
     /// Last velocity the filter used (north, east), for the glitch gate; NaN when none.
     pub prev_v: [f32; 2],
+    /// The velocity the filter used before `prev_v` (north, east), NaN when none: the
+    /// glitch gate's second reference, which tells a glitch it let through from the
+    /// motion that follows it.
+    pub prev_v0: [f32; 2],
+    /// Seconds from the velocity in `prev_v0` to the one in `prev_v`.
+    pub gap0: f32,
     /// Epochs ignored as glitches in a row.
     pub skips: u8,
     /// Seconds since the velocity in `prev_v` (the glitch gate's elapsed time).
@@ -173,6 +179,8 @@ impl StepState {
         n_fast: 0,
         prev_speed: 0.0,
         prev_v: [f32::NAN; 2],
+        prev_v0: [f32::NAN; 2],
+        gap0: 0.0,
         skips: 0,
         t_used: 0.0,
         pending_v: [f32::NAN; 2],
