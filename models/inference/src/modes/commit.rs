@@ -31,6 +31,25 @@ pub fn corrected_gain(k: f32, y: f32) -> f32 {
     k * e / (1.0 - k + k * e)
 }
 
+/// The innovation `d` (radians, the course as the mode faces minus the prior) a
+/// standing car's heading is fed with. Under the motion bar ([`Step::moving`]) a
+/// standing car's course still feeds its held heading with the small gain its σ gives,
+/// and a car creeps either way: a course more than a quarter turn off the heading is
+/// a creep backwards (or noise), so it pulls the heading towards its reverse, along
+/// the car's axis, not a fraction of the way across the half turn. Fed as it was, a
+/// car creeping backwards at 0.5 m/s turned its held heading by 25° the wrong way in
+/// one 1 Hz epoch and drove off on it (simulated NMEA cars, models/reports/unmet.md).
+/// Which way the car faces is the direction rules' and the network's call, on moving
+/// epochs.
+#[inline]
+fn stand_innovation(st: &StepState, step: &Step, d: f32) -> f32 {
+    if st.car_stands() && !step.moving && d.abs() > 0.5 * std::f32::consts::PI {
+        wrap_rad(d + std::f32::consts::PI)
+    } else {
+        d
+    }
+}
+
 /// The reverse logit: the rule's `±REVERSE_PRIOR` plus the network's `y`.
 #[inline]
 pub fn reverse_logit(rule_reverse: bool, y: f32) -> f32 {
@@ -77,7 +96,7 @@ pub fn commit(st: &mut StepState, step: &Step, y: &[f32], dt: f32) -> Decision {
             step.rule_reverse
         };
         let z = facing(step.course, reverse);
-        let d = wrap_rad(z - step.prior);
+        let d = stand_innovation(st, step, wrap_rad(z - step.prior));
         st.t_mode = if reverse != st.reverse {
             0.0
         } else {

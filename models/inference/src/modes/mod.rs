@@ -622,6 +622,30 @@ mod tests {
         assert_eq!(skips, 1, "an epoch far from the drive is still gated");
     }
 
+    /// A car standing at 21° creeps backwards, its course 187° off, at a speed just
+    /// over three times its receiver's noise and under the motion bar (1 Hz, sAcc 0.1
+    /// m/s): the small gain the course feeds the held heading with pulls it along the
+    /// car's axis, not a fraction of the way across the half turn.
+    #[test]
+    fn a_standing_car_creeping_backwards_keeps_its_axis() {
+        let mut st = StepState::fresh(Platform::Car);
+        along(&mut st, 0.0, 21.0);
+        for _ in 0..20 {
+            along(&mut st, 8.0, 21.0);
+        }
+        for speed in [6.0, 4.0, 2.0, 1.0, 0.5] {
+            along(&mut st, speed, 21.0);
+        }
+        for _ in 0..10 {
+            along(&mut st, 0.05, 90.0);
+        }
+        assert!(st.car_stands(), "{st:?}");
+        let d = along(&mut st, 0.35, 208.0);
+        assert!(d.gain > 0.0, "the creep feeds the held heading: {d:?}");
+        let off = wrap_rad(d.psi - 21f32.to_radians()).to_degrees();
+        assert!(off.abs() < 2.0, "{off}° off the held heading: {st:?}");
+    }
+
     /// A car standing at 84° reads, at 10 Hz, a glitch pair of 1 m/s along its axis
     /// backwards (confirmed and on the axis: taken for a back-out), then rest again,
     /// then a 4 m/s spike. The drop back to rest is braking ([`BRAKE_MAX`]), not a
