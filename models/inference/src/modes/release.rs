@@ -364,16 +364,20 @@ fn count_skip(st: &mut StepState, reject: bool, prev: [f32; 2], dt: f32) {
 }
 
 /// Whether the last velocity the gate let through (`prev_v`) was itself the glitch,
-/// judged by this one (`v`, `dt` seconds after the last epoch, noise σ `sig`): `v` and
-/// the velocity used before `prev_v` (`prev_v0`) are both over `gate_speed`, and `v`
-/// is within reach of `prev_v0` (`a_max` over all the time since) and nearer to it
-/// than `prev_v` came. (Slower, a reading near rest is near any slow velocity, and a
-/// glitch burst at a stop was answered by the next glitch.) A glitch that reads slow (under
-/// `gate_speed`, where a moving vehicle's velocity is not gated) or just inside the
-/// reach passes the gate; measured from it, the motion that follows looks unreachable,
-/// and at 1 Hz the answer kept the glitch's course for up to `max_skips` seconds of
-/// plain driving (the 1 Hz car rows of models/reports/unmet.md at 2 m/s and faster).
-/// Checked only on an epoch the gate would reject.
+/// judged by this one (`v`, `dt` seconds after the last epoch, noise σ `sig`), which
+/// the gate would reject. A glitch that reads slow (under `gate_speed`, where a moving
+/// vehicle's velocity is not gated) or just inside the reach passes the gate; measured
+/// from it, the motion that follows looks unreachable, and at 1 Hz the answer kept the
+/// glitch's course for up to `max_skips` seconds of plain driving (the 1 Hz car rows of
+/// models/reports/unmet.md at 2 m/s and faster).
+///
+/// So when the velocity used before `prev_v` (`prev_v0`), `prev_v` and `v` are three
+/// epochs in a row, `prev_v0` and `v` both over `gate_speed`, and `v` is within reach
+/// of `prev_v0` (`a_max` over all the time since) and nearer to it than `prev_v` came,
+/// `prev_v` was the glitch. In a row: under poor sky a chain of glitches with skipped
+/// epochs between them turned a backing car's answer forward. Over `gate_speed`: a
+/// reading near rest is near any slow velocity, and a glitch burst at a stop was
+/// answered by its next glitch.
 fn outlier_before(mp: &ModeParams, st: &StepState, v: [f32; 2], sig: f32, dt: f32) -> bool {
     let (v0, v1) = (st.prev_v0, st.prev_v);
     let fast = |v: [f32; 2]| v[0].hypot(v[1]) > mp.gate_speed;
