@@ -388,7 +388,8 @@ fn outlier_before(mp: &ModeParams, st: &StepState, v: [f32; 2], sig: f32, dt: f3
     }
     let back = (v[0] - v0[0]).hypot(v[1] - v0[1]);
     let glitch = (v1[0] - v0[0]).hypot(v1[1] - v0[1]);
-    back < glitch && back <= mp.a_max * (st.gap0 + st.t_used + dt) + 3.0 * sig
+    // In a row, all the time since `prev_v0` is its gap to `prev_v` and this epoch's.
+    back < glitch && back <= mp.a_max * (st.gap0 + dt) + 3.0 * sig
 }
 
 /// A car that left its stand sideways turned in place: it is no car (it shows itself
