@@ -7,6 +7,8 @@
 //! - [`drive`]: whole simulated tracks of cars (stops, parking, reversing) and
 //!   turn-in-place platforms, seen by 1–10 Hz receivers with lag, gaps and three styles.
 //! - [`logs`]: tracks of epochs with truth, from the simulator or from users' CSV logs.
+//! - [`noisy`]: a real log seen by a noisier receiver (receiver noise added, truth
+//!   kept), to judge the models on receivers unlike their training ones.
 //! - [`loss`]: the losses that train the output heads, with their gradients.
 //! - [`make`]: where models are made: each recipe (per-epoch, temporal, the Kalman
 //!   filter, users' own logs) from data through training and σ maps to the written
@@ -32,6 +34,7 @@ pub mod eval;
 pub mod logs;
 pub mod loss;
 pub mod make;
+pub mod noisy;
 pub mod plot;
 pub mod receiver_log;
 pub mod replay;

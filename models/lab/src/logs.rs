@@ -119,17 +119,22 @@ pub(crate) fn simulated(p: &crate::drive::DriveParams, seed: u64) -> Vec<LogTrac
         .collect()
 }
 
+/// The columns every log this crate writes starts with, in order (what
+/// [`read_csv`] needs to train and evaluate on it).
+pub const LOG_COLUMNS: [&str; 6] = [
+    "t_s",
+    "track",
+    "v_north",
+    "v_east",
+    "speed_acc",
+    "truth_heading_deg",
+];
+
 /// Write simulated tracks as one CSV in the log format (plus `platform`, `receiver`,
 /// `rate_hz`, `reversing`, `split`).
 pub fn write_tracks_csv(path: &Path, tracks: &[Track]) -> Result<()> {
     let mut w = csv::Writer::from_path(path).with_context(|| format!("{}", path.display()))?;
-    w.write_record([
-        "t_s",
-        "track",
-        "v_north",
-        "v_east",
-        "speed_acc",
-        "truth_heading_deg",
+    w.write_record(LOG_COLUMNS.iter().chain(&[
         "true_speed",
         "receiver_course_deg",
         "reversing",
@@ -137,7 +142,7 @@ pub fn write_tracks_csv(path: &Path, tracks: &[Track]) -> Result<()> {
         "receiver",
         "rate_hz",
         "split",
-    ])?;
+    ]))?;
     for t in tracks {
         let meta = [
             serde_json::to_value(t.platform)?,

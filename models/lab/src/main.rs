@@ -245,6 +245,30 @@ enum SimCmd {
         #[arg(long)]
         output: PathBuf,
     },
+    /// A real log seen by a noisier receiver: receiver noise added to its velocities
+    /// (the drive simulator's model, a correlated and a white part per axis), its
+    /// truth and time kept (see `ghnet_lab::noisy`).
+    Noisy {
+        /// Input log (CSV with truth, as `ghnet eval --data` reads).
+        #[arg(long)]
+        data: PathBuf,
+        /// Noise σ per axis, m/s.
+        #[arg(long)]
+        sigma: f32,
+        /// Correlation time of the noise's correlated part, s.
+        #[arg(long, default_value_t = 2.0)]
+        corr_s: f64,
+        /// Drop the log's speed accuracy (a receiver that reports none); kept
+        /// otherwise, so that it understates the added noise.
+        #[arg(long)]
+        no_acc: bool,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output CSV.
+        #[arg(long)]
+        output: PathBuf,
+    },
     /// A realistic consumer receiver over the full circle.
     Realistic {
         #[command(flatten)]
@@ -436,6 +460,26 @@ fn simulate(which: SimCmd) -> Result<()> {
                 tracks.len(),
                 output.display()
             );
+            return Ok(());
+        }
+        SimCmd::Noisy {
+            data,
+            sigma,
+            corr_s,
+            no_acc,
+            seed,
+            output,
+        } => {
+            let mut tracks = ghnet_lab::logs::read_truth_csv(&data)?;
+            let noise = ghnet_lab::noisy::ReceiverNoise {
+                sigma,
+                corr_s,
+                drop_acc: no_acc,
+            };
+            ghnet_lab::noisy::add_receiver_noise(&mut tracks, noise, seed);
+            ghnet_lab::noisy::write_log_csv(&output, &tracks)?;
+            let n: usize = tracks.iter().map(|t| t.len()).sum();
+            eprintln!("wrote {n} epochs to {}", output.display());
             return Ok(());
         }
         SimCmd::S1 {

@@ -1,0 +1,184 @@
+//! A real log seen by a noisier receiver: receiver noise added to its velocities, its
+//! truth and timing kept (`ghnet simulate noisy`, `models/noisy.sh`).
+//!
+//! The simulator's drives are where the model was made, so they cannot say how it does
+//! on a receiver unlike its training ones; a real drive can, once its receiver is made
+//! worse in a known way. The noise is the drive simulator's receiver model
+//! (`drive.rs`): per axis, a correlated part (first-order, `0.8σ`) and a white part
+//! (`0.6σ`), σ per axis in all. The log's sAcc is kept (the receiver then understates
+//! its noise, as RTKLIB's formal accuracy does) or dropped (a receiver that gives
+//! none, as NMEA).
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+
+use crate::logs::LogTrack;
+
+/// The receiver noise [`add_receiver_noise`] adds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReceiverNoise {
+    /// Noise σ per axis, m/s.
+    pub sigma: f32,
+    /// Correlation time of the correlated part, s.
+    pub corr_s: f64,
+    /// Whether the log's speed accuracy is dropped (NaN) rather than kept.
+    pub drop_acc: bool,
+}
+
+/// Adds `noise` to every epoch's velocity of `tracks` (each track's correlated part
+/// starts afresh), drawing from `seed`; truth, time and true speed stay as they are.
+pub fn add_receiver_noise(tracks: &mut [LogTrack], noise: ReceiverNoise, seed: u64) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let sigma = f64::from(noise.sigma);
+    for t in tracks.iter_mut() {
+        let mut ar = [0.0f64; 2];
+        for i in 0..t.len() {
+            // A track's first epoch, or one after a backward step, starts the
+            // correlated part from its stationary spread.
+            let dt = if i > 0 { t.t_s[i] - t.t_s[i - 1] } else { 0.0 };
+            let phi = if dt > 0.0 && noise.corr_s > 0.0 {
+                (-dt / noise.corr_s).exp()
+            } else {
+                0.0
+            };
+            let innov = (1.0 - phi * phi).sqrt();
+            for a in &mut ar {
+                *a = phi * *a + innov * rng.sample::<f64, _>(StandardNormal);
+            }
+            let white: [f64; 2] = [rng.sample(StandardNormal), rng.sample(StandardNormal)];
+            t.v_north[i] += (sigma * (0.8 * ar[0] + 0.6 * white[0])) as f32;
+            t.v_east[i] += (sigma * (0.8 * ar[1] + 0.6 * white[1])) as f32;
+            if noise.drop_acc {
+                t.speed_acc[i] = f32::NAN;
+            }
+        }
+    }
+}
+
+/// Writes `tracks` as a CSV log (`t_s`, `track`, `v_north`, `v_east`, `speed_acc`
+/// empty when unknown, `truth_heading_deg`, and `true_speed` when the log had it), the
+/// format `ghnet eval --data` reads.
+pub fn write_log_csv(path: &Path, tracks: &[LogTrack]) -> Result<()> {
+    let mut w = csv::Writer::from_path(path).with_context(|| format!("{}", path.display()))?;
+    let speed = tracks
+        .iter()
+        .any(|t| t.true_speed.iter().any(|s| s.is_finite()));
+    let mut header = crate::logs::LOG_COLUMNS.to_vec();
+    if speed {
+        header.push("true_speed");
+    }
+    w.write_record(&header)?;
+    let num = |v: f32| {
+        if v.is_finite() {
+            v.to_string()
+        } else {
+            String::new()
+        }
+    };
+    for t in tracks {
+        for i in 0..t.len() {
+            let mut rec = vec![
+                t.t_s[i].to_string(),
+                t.key.clone(),
+                t.v_north[i].to_string(),
+                t.v_east[i].to_string(),
+                num(t.speed_acc[i]),
+                t.truth_deg[i].to_string(),
+            ];
+            if speed {
+                rec.push(num(t.true_speed[i]));
+            }
+            w.write_record(&rec)?;
+        }
+    }
+    w.flush()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A standing 1 Hz track of `n` epochs with sAcc 0.05 m/s.
+    fn standing(n: usize) -> LogTrack {
+        LogTrack {
+            key: "a".into(),
+            platform: None,
+            t_s: (0..n).map(|i| i as f64).collect(),
+            v_north: vec![0.0; n],
+            v_east: vec![0.0; n],
+            speed_acc: vec![0.05; n],
+            truth_deg: vec![90.0; n],
+            true_speed: vec![f32::NAN; n],
+            receiver_course_deg: vec![f32::NAN; n],
+        }
+    }
+
+    /// The added noise has σ per axis and, correlated over 2 s, carries over from one
+    /// 1 Hz epoch to the next (about `0.64·e^(−1/2)` = 0.39); the truth is untouched and
+    /// the sAcc kept or dropped as asked.
+    #[test]
+    fn the_noise_has_its_sigma_and_memory() {
+        let noise = ReceiverNoise {
+            sigma: 0.2,
+            corr_s: 2.0,
+            drop_acc: false,
+        };
+        let mut tracks = vec![standing(20_000)];
+        add_receiver_noise(&mut tracks, noise, 7);
+        let v = &tracks[0].v_north;
+        let n = v.len() as f64;
+        let var = v.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>() / n;
+        let lag1 = v
+            .windows(2)
+            .map(|w| f64::from(w[0]) * f64::from(w[1]))
+            .sum::<f64>()
+            / (n - 1.0);
+        assert!((var.sqrt() - 0.2).abs() < 0.01, "σ {}", var.sqrt());
+        assert!(
+            (lag1 / var - 0.39).abs() < 0.05,
+            "lag-1 correlation {}",
+            lag1 / var
+        );
+        assert!(tracks[0].truth_deg.iter().all(|&h| h == 90.0));
+        assert!(tracks[0].speed_acc.iter().all(|&a| a == 0.05));
+        add_receiver_noise(
+            &mut tracks,
+            ReceiverNoise {
+                drop_acc: true,
+                ..noise
+            },
+            7,
+        );
+        assert!(tracks[0].speed_acc.iter().all(|a| a.is_nan()));
+    }
+
+    /// What is written reads back as the same log.
+    #[test]
+    fn a_written_log_reads_back() {
+        let mut tracks = vec![standing(50)];
+        add_receiver_noise(
+            &mut tracks,
+            ReceiverNoise {
+                sigma: 0.1,
+                corr_s: 1.0,
+                drop_acc: true,
+            },
+            3,
+        );
+        let dir = std::env::temp_dir().join(format!("ghnet-noisy-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("log.csv");
+        write_log_csv(&path, &tracks).unwrap();
+        let (back, summary) = crate::logs::read_csv(&path, true).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(summary.skipped, 0);
+        assert_eq!(back[0].v_north, tracks[0].v_north);
+        assert_eq!(back[0].t_s, tracks[0].t_s);
+        assert!(back[0].speed_acc.iter().all(|a| a.is_nan()));
+    }
+}
