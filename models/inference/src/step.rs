@@ -301,7 +301,9 @@ pub(crate) fn step_and_sigma(
     } else if was_moving {
         // A stop begins: a car's holds its approach ([`crate::modes::Approach`]); any
         // stand empties it.
-        if let Some((a, spread)) = st.approach.take().filter(|_| st.vehicle.car) {
+        // Not an approach the car has since left behind, manoeuvring.
+        let left = st.approach.left_behind(st.psi);
+        if let Some((a, spread)) = st.approach.take().filter(|_| st.vehicle.car && !left) {
             // Held as surely as its answers agreed: the raw σ the stop's map reads.
             let raw = (APPROACH_SPREAD_K * spread).hypot(APPROACH_FLOOR_DEG.to_radians());
             (st.psi, d.psi) = (a, a);
@@ -313,6 +315,10 @@ pub(crate) fn step_and_sigma(
     // nor a release off a stand's axis that may still give the stand its heading back.
     if st.moving_now() && st.driving && st.before_release.is_none() {
         st.approach.add(st.psi, std, dt);
+    } else if st.moving_now() && !step.glitch {
+        // Manoeuvring, not a glitch burst at the stop (which the approach is there to
+        // outlast).
+        st.approach.idle(dt);
     }
     // Only the answer's: an approach weighing a held answer by the floor lost the
     // heading those answers held rightly through a glitch near a stop.

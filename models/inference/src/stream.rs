@@ -1597,6 +1597,40 @@ mod tests {
         );
     }
 
+    /// A car (1 Hz, sAcc 0.05 m/s) drives north, stops, and reverses into a space,
+    /// turning from 10° to 70°: two seconds at 0.9 m/s (released: one driving answer,
+    /// the approach's only one) and five at 0.6 m/s (under the release bar), then
+    /// stands. The stop holds the heading it reversed to, not that one answer from
+    /// before the manoeuvre, which the approach's σ (a degree or two) called sure.
+    #[test]
+    fn a_stop_after_reversing_into_a_space_holds_where_it_turned_to() {
+        let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
+        let mut sp = StreamPredictor::new(model).with_platform(Some(Platform::Car));
+        let mut h = sp.history();
+        let mut rx = Ublox::new(1.0, 21);
+        for _ in 0..30 {
+            sp.predict(&mut h, &rx.epoch([8.0, 0.0]));
+        }
+        for v in [6.0, 4.0, 2.0, 1.0, 0.0, 0.0, 0.0] {
+            sp.predict(&mut h, &rx.epoch([v, 0.0]));
+        }
+        // Backing up: the course is the heading's reverse.
+        for (k, v) in [0.9, 0.9, 0.6, 0.6, 0.6, 0.6, 0.6].into_iter().enumerate() {
+            sp.predict(&mut h, &rx.epoch([v, 190.0 + 10.0 * k as f32]));
+        }
+        let held: Vec<_> = (0..5)
+            .map(|_| sp.predict(&mut h, &rx.epoch([0.0, 0.0])))
+            .collect();
+        let last = held.last().expect("answers");
+        assert_eq!(last.status, Status::Held, "{held:?}");
+        let off = (last.heading_deg - 70.0 + 540.0).rem_euclid(360.0) - 180.0;
+        assert!(
+            off.abs() < 20.0,
+            "holds {}°, {off}° off: {held:?}",
+            last.heading_deg
+        );
+    }
+
     /// A car on a noisy 5 Hz receiver (sAcc 0.35 m/s) leaves its stand at 1–1.5 m/s,
     /// its speed once dipping under `3·sAcc` (1.05 m/s) on the way: the dip does not
     /// restart the release clock, and the car is answered within a second of leaving.

@@ -29,6 +29,27 @@ pub const APPROACH_TURN_DEG_S: f32 = 6.0;
 /// Buckets of the approach window.
 pub const APPROACH_BUCKETS: usize = 5;
 
+/// Seconds of motion without driving (under the release bar: a manoeuvre; glitches
+/// the gate skipped do not count) since the approach's last answer after which a stop
+/// whose heading has moved away from the approach ([`APPROACH_LEFT_DEG`]) holds its
+/// last answer instead: the approach is from before the manoeuvre. The window itself
+/// counts driving time, so that a braking car's last slow seconds (not driving at
+/// 1 Hz) keep its answers from speed; counted in wall time, the shared real drive's
+/// stops held headings up to 1.5° further off. Four seconds: at 1 Hz two noisy slow
+/// courses before a stop are no manoeuvre (with two, a simulated u-blox car held a
+/// course 126° off instead of its approach's 10°), while reversing into a space takes
+/// longer.
+pub const APPROACH_IDLE_S: f32 = 4.0;
+
+/// How far (degrees) a stop's heading must have moved from its approach's mean, after
+/// [`APPROACH_IDLE_S`] of manoeuvring, for the approach to be left behind. One bad
+/// slow course at the end moves it less than its σ allows; a car that reversed into a
+/// space turning as it went, more: on the shared real drive with 0.05 m/s of added
+/// receiver noise (`models/reports/noisy-real.md`) one held its approach from before
+/// the manoeuvre, 70° off with a σ of 1.5°, and then left that stand off its axis and
+/// was taken for a robot.
+pub const APPROACH_LEFT_DEG: f32 = 30.0;
+
 /// Seconds of one bucket.
 const BUCKET_S: f32 = APPROACH_S / APPROACH_BUCKETS as f32;
 
@@ -42,6 +63,8 @@ pub struct Approach {
     newest: usize,
     /// Seconds into it.
     t: f32,
+    /// Seconds of motion since the last answer ([`Approach::idle`]).
+    idle: f32,
 }
 
 impl Approach {
@@ -50,6 +73,7 @@ impl Approach {
         sums: [[0.0; 4]; APPROACH_BUCKETS],
         newest: 0,
         t: 0.0,
+        idle: 0.0,
     };
 
     /// The window's sums over all buckets, `[Σw·cos ψ, Σw·sin ψ, Σw, n]`.
@@ -132,6 +156,7 @@ impl Approach {
             moved += 1;
         }
         self.t = self.t.min(BUCKET_S);
+        self.idle = 0.0;
         let b = &mut self.sums[self.newest];
         *b = [
             b[0] + wi * psi.cos(),
@@ -139,6 +164,22 @@ impl Approach {
             b[2] + wi,
             b[3] + 1.0,
         ];
+    }
+
+    /// Counts `dt` seconds of motion that gave no answer to the approach (the car moved
+    /// without driving).
+    pub fn idle(&mut self, dt: f32) {
+        self.idle += dt.max(0.0);
+    }
+
+    /// Whether a stop whose heading is `psi` (radians) has left the approach behind:
+    /// after [`APPROACH_IDLE_S`] of motion without driving, its heading is more than
+    /// [`APPROACH_LEFT_DEG`] from the approach's mean.
+    pub fn left_behind(&self, psi: f32) -> bool {
+        self.idle >= APPROACH_IDLE_S
+            && self
+                .mean()
+                .is_some_and(|m| wrap_rad(psi - m).abs() > APPROACH_LEFT_DEG.to_radians())
     }
 
     /// Empties the approach and returns what a car's stop that begins now holds: the
@@ -187,6 +228,32 @@ mod tests {
         let held = stop(&mut a).expect("an approach");
         assert!((held - 30.0).abs() < 1.0, "held {held}");
         assert_eq!(a, Approach::EMPTY, "a stand empties it");
+    }
+
+    /// A car that drove north, then manoeuvred without driving for `idle` s and stands
+    /// with its heading at `now` (degrees): whether its approach is left behind.
+    fn left(idle: f32, now: f32) -> bool {
+        let mut a = approached(5.0, &[(0.0, 2.0); 25]);
+        for _ in 0..(idle * 5.0).round() as usize {
+            a.idle(0.2);
+        }
+        a.left_behind(now.to_radians())
+    }
+
+    /// A stop after five seconds of reversing into a space (its heading now 60° from
+    /// the approach) holds its last answer; after two seconds of slow noisy courses, or
+    /// with its heading still near the approach's (a straight back-up), the approach
+    /// stands; an answer puts the clock back.
+    #[test]
+    fn a_manoeuvre_leaves_the_approach_behind() {
+        assert!(left(5.0, 60.0));
+        assert!(left(5.0, -60.0));
+        assert!(!left(2.0, 60.0), "two seconds are no manoeuvre");
+        assert!(!left(5.0, 10.0), "near the approach's heading");
+        let mut a = approached(5.0, &[(0.0, 2.0); 25]);
+        (0..25).for_each(|_| a.idle(0.2));
+        a.add(0.0, 2.0, 0.2);
+        assert!(!a.left_behind(60f32.to_radians()), "an answer since");
     }
 
     /// The spread says how far the answers disagreed: none for one steady heading, about

@@ -75,7 +75,9 @@ mod start;
 mod state;
 mod vehicle;
 
-pub use approach::{Approach, APPROACH_BUCKETS, APPROACH_S, APPROACH_TURN_DEG_S};
+pub use approach::{
+    Approach, APPROACH_BUCKETS, APPROACH_IDLE_S, APPROACH_LEFT_DEG, APPROACH_S, APPROACH_TURN_DEG_S,
+};
 pub use commit::{
     commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR, SENSE_RUN_M,
     SENSE_SIGMA_DEG, YAW_TAU_S,
