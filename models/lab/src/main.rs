@@ -470,6 +470,9 @@ fn simulate(which: SimCmd) -> Result<()> {
             seed,
             output,
         } => {
+            if !(sigma.is_finite() && sigma >= 0.0 && corr_s.is_finite() && corr_s >= 0.0) {
+                bail!("--sigma and --corr-s must be finite and not negative");
+            }
             let mut tracks = ghnet_lab::logs::read_truth_csv(&data)?;
             let noise = ghnet_lab::noisy::ReceiverNoise {
                 sigma,
