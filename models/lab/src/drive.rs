@@ -28,7 +28,9 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
-use crate::sim::{log_uniform, uniform, Split};
+use crate::sim::{
+    correlated_step, log_uniform, uniform, Split, NOISE_CORRELATED_SHARE, NOISE_WHITE_SHARE,
+};
 
 /// Internal simulation step, s: kinematics and receiver filters run at 10 Hz and each
 /// receiver takes every `10/rate`-th state.
@@ -583,7 +585,6 @@ fn observe(
         1.0
     };
     let phi = (-DT / rx.corr_s).exp();
-    let innov = (1.0 - phi * phi).sqrt();
     let (mut ln, mut le) = (0.0, 0.0);
     let mut ar = [0.0f64; 2];
     let mut course = f64::NAN;
@@ -601,16 +602,16 @@ fn observe(
         let (an, ae) = lever_velocity(h, yaw_rate, rx.lever_m);
         ln += alpha * (v * c + an - ln);
         le += alpha * (v * s + ae - le);
-        for a in &mut ar {
-            *a = phi * *a + innov * rng.sample::<f64, _>(StandardNormal);
-        }
+        correlated_step(&mut ar, phi, rng);
         if k % every != 0 || gaps[k] {
             continue;
         }
-        let white = |rng: &mut ChaCha8Rng| rx.sigma * 0.6 * rng.sample::<f64, _>(StandardNormal);
+        let white = |rng: &mut ChaCha8Rng| {
+            rx.sigma * NOISE_WHITE_SHARE * rng.sample::<f64, _>(StandardNormal)
+        };
         let (gn, ge) = glitches.next(p, bad[k], rng);
-        let vn = ln + rx.sigma * 0.8 * ar[0] + white(rng) + gn;
-        let ve = le + rx.sigma * 0.8 * ar[1] + white(rng) + ge;
+        let vn = ln + rx.sigma * NOISE_CORRELATED_SHARE * ar[0] + white(rng) + gn;
+        let ve = le + rx.sigma * NOISE_CORRELATED_SHARE * ar[1] + white(rng) + ge;
         let speed = vn.hypot(ve);
         // Snaps to zero below its threshold (the track's sAcc factor sets it at
         // 0.3–0.6 m/s), so motion starts with a jump; its course holds while it does.

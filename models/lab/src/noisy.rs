@@ -3,11 +3,11 @@
 //!
 //! The simulator's drives are where the model was made, so they cannot say how it does
 //! on a receiver unlike its training ones; a real drive can, once its receiver is made
-//! worse in a known way. The noise is the drive simulator's receiver model
-//! (`drive.rs`): per axis, a correlated part (first-order, `0.8σ`) and a white part
-//! (`0.6σ`), σ per axis in all. The log's sAcc is kept (the receiver then understates
-//! its noise, as RTKLIB's formal accuracy does) or dropped (a receiver that gives
-//! none, as NMEA).
+//! worse in a known way. The noise is the drive simulator's receiver model (both take
+//! it from `crate::sim`): per axis, a correlated part (first-order, `0.8σ`) and a white
+//! part (`0.6σ`), σ per axis in all. The log's sAcc is kept (the receiver then
+//! understates its noise, as RTKLIB's formal accuracy does) or dropped (a receiver
+//! that gives none, as NMEA).
 
 use std::path::Path;
 
@@ -17,6 +17,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
 use crate::logs::LogTrack;
+use crate::sim::{correlated_step, NOISE_CORRELATED_SHARE, NOISE_WHITE_SHARE};
 
 /// The receiver noise [`add_receiver_noise`] adds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,6 +35,8 @@ pub struct ReceiverNoise {
 pub fn add_receiver_noise(tracks: &mut [LogTrack], noise: ReceiverNoise, seed: u64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let sigma = f64::from(noise.sigma);
+    // The correlated part `a` and the white one `w` of an axis, each of unit variance.
+    let added = |a: f64, w: f64| sigma * (NOISE_CORRELATED_SHARE * a + NOISE_WHITE_SHARE * w);
     for t in tracks.iter_mut() {
         let mut ar = [0.0f64; 2];
         for i in 0..t.len() {
@@ -45,13 +48,10 @@ pub fn add_receiver_noise(tracks: &mut [LogTrack], noise: ReceiverNoise, seed: u
             } else {
                 0.0
             };
-            let innov = (1.0 - phi * phi).sqrt();
-            for a in &mut ar {
-                *a = phi * *a + innov * rng.sample::<f64, _>(StandardNormal);
-            }
+            correlated_step(&mut ar, phi, &mut rng);
             let white: [f64; 2] = [rng.sample(StandardNormal), rng.sample(StandardNormal)];
-            t.v_north[i] += (sigma * (0.8 * ar[0] + 0.6 * white[0])) as f32;
-            t.v_east[i] += (sigma * (0.8 * ar[1] + 0.6 * white[1])) as f32;
+            t.v_north[i] += added(ar[0], white[0]) as f32;
+            t.v_east[i] += added(ar[1], white[1]) as f32;
             if noise.drop_acc {
                 t.speed_acc[i] = f32::NAN;
             }

@@ -20,7 +20,9 @@ mod sample;
 
 pub use realistic::{simulate_realistic, RealisticParams};
 pub use s1::{simulate_s1, S1Params};
-pub(crate) use sample::{log_uniform, uniform};
+pub(crate) use sample::{
+    correlated_step, log_uniform, uniform, NOISE_CORRELATED_SHARE, NOISE_WHITE_SHARE,
+};
 pub use sample::{read_csv, spread_velocities, write_csv, Sample, SimError, Split};
 
 #[cfg(test)]

@@ -5,6 +5,7 @@ use std::path::Path;
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
 /// Which part of a data set a sample belongs to.
@@ -158,4 +159,23 @@ pub(crate) fn uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
 /// factor matters, not a difference.
 pub(crate) fn log_uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
     uniform(rng, lo.ln(), hi.ln()).exp()
+}
+
+/// The share of a receiver's velocity noise σ (per axis) that is correlated in time
+/// ([`correlated_step`]); the rest, [`NOISE_WHITE_SHARE`], is white, so that the two
+/// add to σ in quadrature. The drive simulator's receivers have it ([`crate::drive`]),
+/// and `ghnet simulate noisy` adds it to a real log ([`crate::noisy`]).
+pub(crate) const NOISE_CORRELATED_SHARE: f64 = 0.8;
+
+/// The white share of a receiver's velocity noise σ (see [`NOISE_CORRELATED_SHARE`]).
+pub(crate) const NOISE_WHITE_SHARE: f64 = 0.6;
+
+/// One step of the correlated part of the noise on both axes: a first-order process
+/// of unit variance whose correlation over the step is `phi` (`e^(−dt/τ)`; 0 draws it
+/// afresh).
+pub(crate) fn correlated_step(ar: &mut [f64; 2], phi: f64, rng: &mut ChaCha8Rng) {
+    let innov = (1.0 - phi * phi).sqrt();
+    for a in ar {
+        *a = phi * *a + innov * rng.sample::<f64, _>(StandardNormal);
+    }
 }
