@@ -480,7 +480,7 @@ fn simulate(which: SimCmd) -> Result<()> {
                 drop_acc: no_acc,
             };
             ghnet_lab::noisy::add_receiver_noise(&mut tracks, noise, seed);
-            ghnet_lab::noisy::write_log_csv(&output, &tracks)?;
+            ghnet_lab::logs::write_log_csv(&output, &tracks)?;
             let n: usize = tracks.iter().map(|t| t.len()).sum();
             eprintln!("wrote {n} epochs to {}", output.display());
             return Ok(());

@@ -1,5 +1,6 @@
 //! A real log seen by a noisier receiver: receiver noise added to its velocities, its
-//! truth and timing kept (`ghnet simulate noisy`, `models/noisy.sh`).
+//! truth and timing kept (`ghnet simulate noisy`, `models/noisy.sh`; the log is written
+//! by [`crate::logs::write_log_csv`]).
 //!
 //! The simulator's drives are where the model was made, so they cannot say how it does
 //! on a receiver unlike its training ones; a real drive can, once its receiver is made
@@ -9,9 +10,6 @@
 //! understates its noise, as RTKLIB's formal accuracy does) or dropped (a receiver
 //! that gives none, as NMEA).
 
-use std::path::Path;
-
-use anyhow::{Context, Result};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -57,46 +55,6 @@ pub fn add_receiver_noise(tracks: &mut [LogTrack], noise: ReceiverNoise, seed: u
             }
         }
     }
-}
-
-/// Writes `tracks` as a CSV log (`t_s`, `track`, `v_north`, `v_east`, `speed_acc`
-/// empty when unknown, `truth_heading_deg`, and `true_speed` when the log had it), the
-/// format `ghnet eval --data` reads.
-pub fn write_log_csv(path: &Path, tracks: &[LogTrack]) -> Result<()> {
-    let mut w = csv::Writer::from_path(path).with_context(|| format!("{}", path.display()))?;
-    let speed = tracks
-        .iter()
-        .any(|t| t.true_speed.iter().any(|s| s.is_finite()));
-    let mut header = crate::logs::LOG_COLUMNS.to_vec();
-    if speed {
-        header.push("true_speed");
-    }
-    w.write_record(&header)?;
-    let num = |v: f32| {
-        if v.is_finite() {
-            v.to_string()
-        } else {
-            String::new()
-        }
-    };
-    for t in tracks {
-        for i in 0..t.len() {
-            let mut rec = vec![
-                t.t_s[i].to_string(),
-                t.key.clone(),
-                t.v_north[i].to_string(),
-                t.v_east[i].to_string(),
-                num(t.speed_acc[i]),
-                t.truth_deg[i].to_string(),
-            ];
-            if speed {
-                rec.push(num(t.true_speed[i]));
-            }
-            w.write_record(&rec)?;
-        }
-    }
-    w.flush()?;
-    Ok(())
 }
 
 #[cfg(test)]
@@ -155,30 +113,5 @@ mod tests {
             7,
         );
         assert!(tracks[0].speed_acc.iter().all(|a| a.is_nan()));
-    }
-
-    /// What is written reads back as the same log.
-    #[test]
-    fn a_written_log_reads_back() {
-        let mut tracks = vec![standing(50)];
-        add_receiver_noise(
-            &mut tracks,
-            ReceiverNoise {
-                sigma: 0.1,
-                corr_s: 1.0,
-                drop_acc: true,
-            },
-            3,
-        );
-        let dir = std::env::temp_dir().join(format!("ghnet-noisy-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("log.csv");
-        write_log_csv(&path, &tracks).unwrap();
-        let (back, summary) = crate::logs::read_csv(&path, true).unwrap();
-        std::fs::remove_dir_all(&dir).unwrap();
-        assert_eq!(summary.skipped, 0);
-        assert_eq!(back[0].v_north, tracks[0].v_north);
-        assert_eq!(back[0].t_s, tracks[0].t_s);
-        assert!(back[0].speed_acc.iter().all(|a| a.is_nan()));
     }
 }
