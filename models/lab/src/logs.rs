@@ -172,6 +172,16 @@ pub fn write_tracks_csv(path: &Path, tracks: &[Track]) -> Result<()> {
     Ok(())
 }
 
+/// A CSV cell for `v`, empty when it is unknown (NaN or infinite): how the logs this
+/// crate writes leave out a missing value, which [`read_csv`] reads back as NaN.
+pub(crate) fn cell_or_empty(v: f32) -> String {
+    if v.is_finite() {
+        v.to_string()
+    } else {
+        String::new()
+    }
+}
+
 /// Writes `tracks` as a CSV log (`t_s`, `track`, `v_north`, `v_east`, `speed_acc`
 /// empty when unknown, `truth_heading_deg`, and `true_speed` when the log had it), the
 /// format `ghnet eval --data` reads.
@@ -185,13 +195,6 @@ pub fn write_log_csv(path: &Path, tracks: &[LogTrack]) -> Result<()> {
         header.push("true_speed");
     }
     w.write_record(&header)?;
-    let num = |v: f32| {
-        if v.is_finite() {
-            v.to_string()
-        } else {
-            String::new()
-        }
-    };
     for t in tracks {
         for i in 0..t.len() {
             let mut rec = vec![
@@ -199,11 +202,11 @@ pub fn write_log_csv(path: &Path, tracks: &[LogTrack]) -> Result<()> {
                 t.key.clone(),
                 t.v_north[i].to_string(),
                 t.v_east[i].to_string(),
-                num(t.speed_acc[i]),
+                cell_or_empty(t.speed_acc[i]),
                 t.truth_deg[i].to_string(),
             ];
             if speed {
-                rec.push(num(t.true_speed[i]));
+                rec.push(cell_or_empty(t.true_speed[i]));
             }
             w.write_record(&rec)?;
         }

@@ -15,6 +15,8 @@ use std::fmt::Write as _;
 
 use ghnet_receivers::{decode, Epoch, Format};
 
+use crate::logs::cell_or_empty;
+
 /// What `ghnet infer --format` accepts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum InputFormat {
@@ -85,18 +87,11 @@ fn first_line_names_v_north(bytes: &[u8]) -> bool {
 
 /// One epoch as a CSV row (unknown values empty, speed accuracy NaN when unknown).
 fn row(e: &Epoch, out: &mut String) {
-    let opt = |x: f32| {
-        if x.is_finite() {
-            x.to_string()
-        } else {
-            String::new()
-        }
-    };
     if let Some(t) = e.time_ns {
         let _ = write!(out, "{t}");
     }
     let (vn, ve) = if e.valid {
-        (opt(e.v_north), opt(e.v_east))
+        (cell_or_empty(e.v_north), cell_or_empty(e.v_east))
     } else {
         (String::new(), String::new())
     };
@@ -105,8 +100,8 @@ fn row(e: &Epoch, out: &mut String) {
         ",{vn},{ve},{},{},{},{}",
         e.speed_accuracy,
         u8::from(e.valid),
-        opt(e.course_deg),
-        opt(e.course_accuracy_deg)
+        cell_or_empty(e.course_deg),
+        cell_or_empty(e.course_accuracy_deg)
     );
 }
 
