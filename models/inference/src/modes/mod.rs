@@ -86,10 +86,11 @@ pub(crate) use noise::random_walk_variance;
 pub use params::{ModeParams, LEVER_M};
 pub use prepare::{prepare, ESCAPE_NOISE_K, STEER_IN_NOISE_K};
 pub use release::{
-    stationary_course, BRAKE_MAX, RELEASE_CONT_ACC_K, RELEASE_CONT_NOISE_K, RELEASE_COURSE_DEG,
-    RELEASE_EPOCHS, RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP,
-    RELEASE_NOISE_CAP_LOW_RATE, RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED,
-    ROBOT_COURSE_NOISE_K, ROBOT_COURSE_TURN_DEG_S, TURN_SPEED_CHANGE, UNSURE_HELD_DEG,
+    stationary_course, BRAKE_MAX, GEAR_CHANGE_S, LONG_STAND_S, RELEASE_CONT_ACC_K,
+    RELEASE_CONT_NOISE_K, RELEASE_COURSE_DEG, RELEASE_EPOCHS, RELEASE_EPOCHS_LONG_STAND,
+    RELEASE_EPOCHS_OFF_AXIS, RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP, RELEASE_NOISE_CAP_LOW_RATE,
+    RELEASE_NOISE_K_AXIS, RELEASE_S, RELEASE_SPEED, REVERSAL_MIN_SPEED, ROBOT_COURSE_NOISE_K,
+    ROBOT_COURSE_TURN_DEG_S, TURN_SPEED_CHANGE, UNSURE_HELD_DEG,
 };
 pub use scatter::{
     extrapolation_share, SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED,
@@ -683,6 +684,121 @@ mod tests {
         }
         let off = wrap_rad(psi - 84f32.to_radians()).to_degrees();
         assert!(off.abs() < 10.0, "{off}° off the held heading: {st:?}");
+    }
+
+    /// A car slowing through 1.2 m/s at 1 Hz (no sAcc) whose receiver reads one epoch
+    /// at 3 m/s a half turn off (within `a_max` of the epoch before): no car stops,
+    /// changes gear and backs up that fast in a second ([`REVERSAL_MIN_SPEED`]), so
+    /// the spike is a glitch and the heading stays. A car that stops first and then
+    /// backs up along the same course is still answered reversing, along its body.
+    #[test]
+    fn a_reversed_spike_while_moving_is_a_glitch() {
+        let at_1hz = |st: &mut StepState, speed: f32, course: f32| {
+            wrap_rad(epoch_dt(st, speed, course, f32::NAN, 1.0).0.psi).to_degrees()
+        };
+        let mut st = StepState::fresh(Platform::Car);
+        at_1hz(&mut st, 0.0, 50.0);
+        for speed in [4.0, 6.0, 8.0, 8.0, 8.0, 8.0, 8.0, 6.0, 4.0, 2.0, 1.2, 1.2] {
+            at_1hz(&mut st, speed, 50.0);
+        }
+        assert!(st.vehicle.car, "{st:?}");
+        let psi = at_1hz(&mut st, 3.0, 230.0);
+        assert_eq!(st.skips, 1, "the reversed spike is a glitch: {st:?}");
+        assert!((psi - 50.0).abs() < 5.0, "turned by the spike: {psi}°");
+        for _ in 0..3 {
+            at_1hz(&mut st, 0.0, 50.0);
+        }
+        let mut psi = 0.0;
+        for _ in 0..3 {
+            psi = at_1hz(&mut st, 1.2, 230.0);
+        }
+        assert_eq!(st.skips, 0, "backing up after a stop is no glitch: {st:?}");
+        assert!(st.reverse && (psi - 50.0).abs() < 10.0, "{psi}°: {st:?}");
+    }
+
+    /// A car parked at 50° on a 1 Hz receiver without sAcc reads two epochs at 4.8 m/s
+    /// backwards along its axis (a glitch pair, which the stand's gate and the release
+    /// rule take for a back-out), then rest: the stand gets its heading back
+    /// ([`RELEASE_EPOCHS_OFF_AXIS`]). A back-out of four seconds at 1.2 m/s is final
+    /// at once, answered along the body.
+    #[test]
+    fn a_backward_glitch_pair_does_not_turn_a_parked_car() {
+        let at_1hz = |st: &mut StepState, speed: f32, course: f32| {
+            wrap_rad(epoch_dt(st, speed, course, f32::NAN, 1.0).0.psi).to_degrees()
+        };
+        let parked = || {
+            let mut st = StepState::fresh(Platform::Car);
+            at_1hz(&mut st, 0.0, 50.0);
+            for speed in [4.0, 6.0, 8.0, 8.0, 8.0, 8.0, 8.0, 6.0, 4.0, 2.0, 1.0] {
+                at_1hz(&mut st, speed, 50.0);
+            }
+            for k in 0..20 {
+                at_1hz(&mut st, 0.05, 37.0 * k as f32);
+            }
+            assert!(st.vehicle.car && st.car_stands(), "{st:?}");
+            st
+        };
+        let mut st = parked();
+        for _ in 0..2 {
+            at_1hz(&mut st, 4.8, 230.0);
+        }
+        let mut psi = 0.0;
+        for _ in 0..3 {
+            psi = at_1hz(&mut st, 0.0, 0.0);
+        }
+        assert!(
+            (psi - 50.0).abs() < 5.0,
+            "{psi}° after the glitch pair: {st:?}"
+        );
+        let mut st = parked();
+        for _ in 0..4 {
+            at_1hz(&mut st, 1.2, 230.0);
+        }
+        assert!(st.before_release.is_none(), "the back-out is final: {st:?}");
+        for _ in 0..3 {
+            psi = at_1hz(&mut st, 0.0, 0.0);
+        }
+        assert!(
+            (psi - 50.0).abs() < 10.0,
+            "{psi}° after backing out: {st:?}"
+        );
+    }
+
+    /// A car parked at 50° (1 Hz, no sAcc) for `stand` s reads a burst of three epochs
+    /// at 1–1.4 m/s a quarter turn off its axis, then rest: after a long stand
+    /// ([`LONG_STAND_S`]) the burst is too short to be final, and the car keeps its
+    /// heading and stays a car; after a short one it has left (a creep's turn).
+    #[test]
+    fn a_burst_of_three_does_not_unmake_a_parked_car() {
+        let at_1hz = |st: &mut StepState, speed: f32, course: f32| {
+            wrap_rad(epoch_dt(st, speed, course, f32::NAN, 1.0).0.psi).to_degrees()
+        };
+        let after = |stand: usize| {
+            let mut st = StepState::fresh(Platform::Auto);
+            at_1hz(&mut st, 0.0, 50.0);
+            for _ in 0..10 {
+                at_1hz(&mut st, 8.0, 50.0);
+            }
+            for speed in [6.0, 4.0, 2.0, 1.0] {
+                at_1hz(&mut st, speed, 50.0);
+            }
+            for k in 0..stand {
+                at_1hz(&mut st, 0.05, 37.0 * k as f32);
+            }
+            assert!(st.vehicle.car && st.car_stands(), "{st:?}");
+            for (speed, course) in [(0.95, 140.0), (1.4, 125.0), (1.05, 135.0)] {
+                at_1hz(&mut st, speed, course);
+            }
+            let psi = at_1hz(&mut st, 0.05, 0.0);
+            (psi, st.vehicle.car)
+        };
+        let (psi, car) = after(20);
+        assert!(
+            car && (psi - 50.0).abs() < 5.0,
+            "long stand: {psi}°, car {car}"
+        );
+        let (psi, _) = after(5);
+        assert!((psi - 50.0).abs() > 45.0, "short stand: {psi}°");
     }
 
     /// A car turning at 4.5 m/s whose receiver prints one 0.0 m/s epoch (a bad fix)

@@ -26,7 +26,7 @@ pub fn prepare(
     let course = ve.atan2(vn);
     update_noise(mp, &mut st.vehicle, speed, acc);
     let run = track_motion(mp, st, vn, ve, acc, dt);
-    keep_or_restore_held(st, run);
+    keep_or_restore_held(mp, st, run);
     let cap2 = cap2();
     let prior = prior(st, speed, course, kf_sigma_v);
     let mut step = Step::holding(course, prior, cap2, speed, acc.is_finite());

@@ -361,11 +361,9 @@ impl MotionRun {
     };
 }
 
-/// What a car's stand held when a short run off its axis released it
+/// What a car's stand held when a short run off its axis (or backwards) released it
 /// ([`StepState::before_release`]): back in place if the run ends at once (a glitch
-/// burst at rest), forgotten once the run reaches [`RELEASE_EPOCHS_OFF_AXIS`].
-///
-/// [`RELEASE_EPOCHS_OFF_AXIS`]: crate::modes::RELEASE_EPOCHS_OFF_AXIS
+/// burst at rest), forgotten once the run reaches [`HeldHeading::epochs`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HeldHeading {
     /// Held heading, radians.
@@ -374,4 +372,10 @@ pub struct HeldHeading {
     pub log_sigma: f32,
     /// Its mode (reversing).
     pub reverse: bool,
+    /// Epochs of the run that make the release final ([`RELEASE_EPOCHS_OFF_AXIS`], or
+    /// [`RELEASE_EPOCHS_LONG_STAND`] after a long stand).
+    ///
+    /// [`RELEASE_EPOCHS_OFF_AXIS`]: crate::modes::RELEASE_EPOCHS_OFF_AXIS
+    /// [`RELEASE_EPOCHS_LONG_STAND`]: crate::modes::RELEASE_EPOCHS_LONG_STAND
+    pub epochs: u16,
 }
