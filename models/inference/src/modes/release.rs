@@ -103,12 +103,13 @@ pub const RELEASE_EPOCHS_OFF_AXIS: u16 = 3;
 /// [`RELEASE_EPOCHS_LONG_STAND`] epochs instead of [`RELEASE_EPOCHS_OFF_AXIS`].
 pub const LONG_STAND_S: f32 = 10.0;
 
-/// Epochs of plain motion off a sure held heading's axis, or backwards along it, that
-/// make the release of a car that stood [`LONG_STAND_S`] final. Under poor sky at 1
+/// Epochs of plain motion off a sure held heading's axis, or backwards along it faster
+/// than a car backs out, that make the release of a car that stood [`LONG_STAND_S`]
+/// final. Under poor sky at 1
 /// and 2 Hz, glitch bursts of three and four epochs released parked cars for good: one
 /// turned the held heading, or took the car for a platform that had turned in place,
 /// whose answers were then the noise's courses for the rest of the stop. With five
-/// after every stand, simulated 1 and 2 Hz cars of seeds no table uses lost 2–5% of
+/// after every stand, simulated 1 and 2 Hz cars of seeds no table uses lost 1.5–5% of
 /// their MAE (four gave about half of that, six and eight no more), but a creeping car
 /// got back the heading it held before a slow turn (the shared real drive with 0.2 m/s
 /// of added noise, `models/reports/noisy-real.md`, 4–9% worse on four of six logs,
@@ -133,8 +134,8 @@ pub const BRAKE_MAX: f32 = 10.0;
 pub const GEAR_CHANGE_S: f32 = 1.0;
 
 /// Speed (m/s, and 3σ of the noise) over which a moving car's velocity pointing
-/// against the one it drove at (more than a quarter turn off, both two used epochs
-/// in a row) is a glitch, unless there was time to brake ([`BRAKE_MAX`]), change gear
+/// against the one it drove at (more than a quarter turn off, the car's last two used
+/// velocities agreeing) is a glitch, unless there was time to brake ([`BRAKE_MAX`]), change gear
 /// ([`GEAR_CHANGE_S`]) and speed up again (`a_max`), whether the gate bounds the
 /// velocity's change or not. Within `a_max` alone a reversed spike of 3 m/s a second
 /// after 1.2 m/s is reachable, and one of 2 m/s after 3.5 m/s is under `gate_speed`,
