@@ -686,6 +686,12 @@ mod tests {
         assert!(off.abs() < 10.0, "{off}° off the held heading: {st:?}");
     }
 
+    /// One 1 Hz epoch of a receiver without sAcc along `course` (degrees) at `speed`,
+    /// filter alone: the answer in degrees.
+    fn at_1hz(st: &mut StepState, speed: f32, course: f32) -> f32 {
+        wrap_rad(epoch_dt(st, speed, course, f32::NAN, 1.0).0.psi).to_degrees()
+    }
+
     /// A car slowing through 1.2 m/s at 1 Hz (no sAcc) whose receiver reads one epoch
     /// at 3 m/s a half turn off (within `a_max` of the epoch before): no car stops,
     /// changes gear and backs up that fast in a second ([`REVERSAL_MIN_SPEED`]), so
@@ -693,9 +699,6 @@ mod tests {
     /// backs up along the same course is still answered reversing, along its body.
     #[test]
     fn a_reversed_spike_while_moving_is_a_glitch() {
-        let at_1hz = |st: &mut StepState, speed: f32, course: f32| {
-            wrap_rad(epoch_dt(st, speed, course, f32::NAN, 1.0).0.psi).to_degrees()
-        };
         let mut st = StepState::fresh(Platform::Car);
         at_1hz(&mut st, 0.0, 50.0);
         for speed in [4.0, 6.0, 8.0, 8.0, 8.0, 8.0, 8.0, 6.0, 4.0, 2.0, 1.2, 1.2] {
@@ -723,9 +726,6 @@ mod tests {
     /// at once, answered along the body.
     #[test]
     fn a_backward_glitch_pair_does_not_turn_a_parked_car() {
-        let at_1hz = |st: &mut StepState, speed: f32, course: f32| {
-            wrap_rad(epoch_dt(st, speed, course, f32::NAN, 1.0).0.psi).to_degrees()
-        };
         let parked = || {
             let mut st = StepState::fresh(Platform::Car);
             at_1hz(&mut st, 0.0, 50.0);
@@ -770,9 +770,6 @@ mod tests {
     /// heading and stays a car; after a short one it has left (a creep's turn).
     #[test]
     fn a_burst_of_three_does_not_unmake_a_parked_car() {
-        let at_1hz = |st: &mut StepState, speed: f32, course: f32| {
-            wrap_rad(epoch_dt(st, speed, course, f32::NAN, 1.0).0.psi).to_degrees()
-        };
         let after = |stand: usize| {
             let mut st = StepState::fresh(Platform::Auto);
             at_1hz(&mut st, 0.0, 50.0);

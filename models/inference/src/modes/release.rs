@@ -105,10 +105,10 @@ pub const LONG_STAND_S: f32 = 10.0;
 
 /// Epochs of plain motion off a sure held heading's axis, or backwards along it faster
 /// than a car backs out, that make the release of a car that stood [`LONG_STAND_S`]
-/// final. Under poor sky at 1
-/// and 2 Hz, glitch bursts of three and four epochs released parked cars for good: one
-/// turned the held heading, or took the car for a platform that had turned in place,
-/// whose answers were then the noise's courses for the rest of the stop. With five
+/// final. Under poor sky at 1 and 2 Hz, glitch bursts of three and four epochs released
+/// parked cars for good: one turned the held heading, or took the car for a platform
+/// that had turned in place, whose answers were then the noise's courses for the rest
+/// of the stop. With five
 /// after every stand, simulated 1 and 2 Hz cars of seeds no table uses lost 1.5–5% of
 /// their MAE (four gave about half of that, six and eight no more), but a creeping car
 /// got back the heading it held before a slow turn (the shared real drive with 0.2 m/s
@@ -135,9 +135,9 @@ pub const GEAR_CHANGE_S: f32 = 1.0;
 
 /// Speed (m/s, and 3σ of the noise) over which a moving car's velocity pointing
 /// against the one it drove at (more than a quarter turn off, the car's last two used
-/// velocities agreeing) is a glitch, unless there was time to brake ([`BRAKE_MAX`]), change gear
-/// ([`GEAR_CHANGE_S`]) and speed up again (`a_max`), whether the gate bounds the
-/// velocity's change or not. Within `a_max` alone a reversed spike of 3 m/s a second
+/// velocities agreeing) is a glitch, unless there was time to brake ([`BRAKE_MAX`]),
+/// change gear ([`GEAR_CHANGE_S`]) and speed up again (`a_max`), whether the gate
+/// bounds the velocity's change or not. Within `a_max` alone a reversed spike of 3 m/s a second
 /// after 1.2 m/s is reachable, and one of 2 m/s after 3.5 m/s is under `gate_speed`,
 /// which the gate does not look at: at 1 Hz the filter took them (the network's gain
 /// near 1), its answer turned by a half turn, and a stop that followed held that
@@ -253,9 +253,10 @@ impl StepState {
 }
 
 /// A car's stand released by a run shorter than [`RELEASE_EPOCHS_OFF_AXIS`] off the
-/// axis of its held heading, or backwards along it, keeps what it held ([`StepState::before_release`]): if that
-/// run ends or gives way to another before it is long enough, it was a glitch burst
-/// and the stand gets its heading back; once it is long enough, it was a departure.
+/// axis of its held heading, or backwards along it ([`RELEASE_EPOCHS_LONG_STAND`] after
+/// a long stand), keeps what it held ([`StepState::before_release`]): if that run ends
+/// or gives way to another before it is long enough, it was a glitch burst and the
+/// stand gets its heading back; once it is long enough, it was a departure.
 pub(super) fn keep_or_restore_held(mp: &ModeParams, st: &mut StepState, step: RunStep) {
     if let Some(h) = st.before_release {
         let n = st.motion.n;
@@ -275,14 +276,16 @@ pub(super) fn keep_or_restore_held(mp: &ModeParams, st: &mut StepState, step: Ru
         && st.has_prior
         && st.released()
         && (!st.motion.on_axis || backward(mp, st))
-        && st.motion.n < off_axis_epochs(st)
     {
-        st.before_release = Some(HeldHeading {
-            psi: st.psi,
-            log_sigma: st.log_sigma,
-            reverse: st.reverse,
-            epochs: off_axis_epochs(st),
-        });
+        let epochs = off_axis_epochs(st);
+        if st.motion.n < epochs {
+            st.before_release = Some(HeldHeading {
+                psi: st.psi,
+                log_sigma: st.log_sigma,
+                reverse: st.reverse,
+                epochs,
+            });
+        }
     }
 }
 
@@ -371,7 +374,9 @@ pub(super) fn glitch(
         && unreachable(BRAKE_MAX, dt);
     let reject = if !(prev[0].is_finite() && dt > 0.0) {
         false
-    } else if braked_too_hard || (!standing && turned_around(mp, st, [vn, ve], sig, dt)) {
+    } else if braked_too_hard
+        || (!standing && turned_around(mp, st, [vn, ve], [speed, prev_speed], sig, dt))
+    {
         st.skips < mp.max_skips
     } else if !gated {
         false
@@ -417,13 +422,20 @@ pub(super) fn glitch(
 
 /// Whether a moving car's velocity `v` (`dt` s after the last epoch, noise σ `sig`)
 /// points against the one it drove at, too soon after it for a stop and a change of
-/// gear ([`REVERSAL_MIN_SPEED`]). The last used velocity must agree with the one used
-/// before it: measured from a glitch the gate took, the drive that follows points
-/// anywhere.
-fn turned_around(mp: &ModeParams, st: &StepState, v: [f32; 2], sig: f32, dt: f32) -> bool {
+/// gear ([`REVERSAL_MIN_SPEED`]). `speeds` are `v`'s and the last used velocity's, as
+/// the gate measured them. The last used velocity must agree with the one used before
+/// it: measured from a glitch the gate took, the drive that follows points anywhere.
+fn turned_around(
+    mp: &ModeParams,
+    st: &StepState,
+    v: [f32; 2],
+    speeds: [f32; 2],
+    sig: f32,
+    dt: f32,
+) -> bool {
     let (prev, before) = (st.prev_v, st.prev_v0);
     let dot = |a: [f32; 2], b: [f32; 2]| a[0] * b[0] + a[1] * b[1];
-    let (speed, prev_speed) = (v[0].hypot(v[1]), prev[0].hypot(prev[1]));
+    let [speed, prev_speed] = speeds;
     let bar = (3.0 * sig).max(REVERSAL_MIN_SPEED);
     st.vehicle.car
         && dot(prev, v) < 0.0
