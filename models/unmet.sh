@@ -7,7 +7,9 @@
 # knowing the platform pays, and what naming the wrong one costs). Each table's last
 # column is the longest `Held` run at 1 m/s or faster; under each car table, the MAE
 # of a kf tuned on that section's own drives against their truth (an oracle baseline,
-# where a car's bar is set against a Kalman filter). 100 drives per section: with 20,
+# where a car's bar is set against a Kalman filter), and under each robot table with
+# --platform robot, the same oracle against atan2 overall and at 1–2 m/s (where a
+# robot's bar is set against atan2). 100 drives per section: with 20,
 # a section's share within 1σ moved by several points from one set of drives to the
 # next (long stops weigh heavily), more than the bar's margins. Writes
 # models/reports/unmet.md (about six minutes on 2 cores); seeds differ from every
@@ -28,6 +30,22 @@ tuned_kf() {
   awk -v note="$note" -v all="$all" -v first="$first" 'BEGIN {
     split(all, a, " "); split(first, f, " ")
     printf "Against a kf tuned on these drives themselves (%s, by grid search on their truth): %.2f° overall and %.2f° after the first motion, ghnet-temporal %.2f° and %.2f° (%.2f× and %.2f×).\n", note, a[2], f[2], a[3], f[3], a[3] / a[2], f[3] / f[2] }'
+}
+
+# One line under a robot section's `--platform robot` table: the MAE (`**all**` and
+# `1–2` rows) of atan2, of a kf tuned on the section's own drives against their truth
+# and of ghnet-temporal (--platform robot), with each one's gain over atan2: where a
+# robot's bar is set against atan2, what the best Kalman filter of the courses gets.
+tuned_kf_robot() {
+  local all band note
+  $G eval --model ghnet-temporal --platform robot --data "$1" --kf tuned >"$T/tuned.md"
+  all=$(eval_row '**all**' <"$T/tuned.md")
+  band=$(eval_row '1–2' <"$T/tuned.md")
+  note=$(head -n 1 "$T/tuned.md" | sed -n 's/.*kf tuned on this log: \(.*\))$/\1/p')
+  echo
+  awk -v note="$note" -v all="$all" -v band="$band" 'BEGIN {
+    split(all, a, " "); split(band, b, " ")
+    printf "Against a kf tuned on these drives themselves (%s, by grid search on their truth): %.2f° overall and %.2f° at 1–2 m/s (%.1f%% and %.1f%% better than atan2), ghnet-temporal %.2f° and %.2f° (%.1f%% and %.1f%%).\n", note, a[2], b[2], 100 * (a[1] - a[2]) / a[1], 100 * (b[1] - b[2]) / b[1], a[3], b[3], 100 * (a[1] - a[3]) / a[1], 100 * (b[1] - b[3]) / b[1] }'
 }
 {
   echo "# ghnet-temporal per vehicle, receiver style and rate"
@@ -54,6 +72,7 @@ tuned_kf() {
           $G eval --model ghnet-temporal --platform "$platform" --data "$T/d.csv" \
             | sed -e '1,2d' -e 's/^### .*/#&/'
           if [ "$vehicle" = cars ] && [ "$platform" = auto ]; then tuned_kf "$T/d.csv"; fi
+          if [ "$vehicle" = robots ] && [ "$platform" = robot ]; then tuned_kf_robot "$T/d.csv"; fi
         done
       done
     done
