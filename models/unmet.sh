@@ -17,15 +17,21 @@
 . "$(dirname "$0")/lab-env.sh"
 OUT=models/reports/unmet.md
 
+# `ghnet eval` of ghnet-temporal with --platform $2 on the section $1 against a kf
+# tuned on its own drives' truth (`--kf tuned`, an oracle no user has), its tables
+# written to $T/tuned.md; prints the tuned kf's parameters from the title.
+tuned_eval() {
+  $G eval --model ghnet-temporal --platform "$2" --data "$1" --kf tuned >"$T/tuned.md"
+  head -n 1 "$T/tuned.md" | sed -n 's/.*kf tuned on this log: \(.*\))$/\1/p'
+}
+
 # One line: the MAE (`**all**` and `after first motion` rows) of a kf tuned on the
-# section's own drives against their truth (`ghnet eval --kf tuned`, an oracle no user
-# has) and of ghnet-temporal (--platform auto).
+# section's own drives against their truth and of ghnet-temporal (--platform auto).
 tuned_kf() {
   local all first note
-  $G eval --model ghnet-temporal --data "$1" --kf tuned >"$T/tuned.md"
+  note=$(tuned_eval "$1" auto)
   all=$(eval_row '**all**' <"$T/tuned.md")
   first=$(eval_row 'after first motion' <"$T/tuned.md")
-  note=$(head -n 1 "$T/tuned.md" | sed -n 's/.*kf tuned on this log: \(.*\))$/\1/p')
   echo
   awk -v note="$note" -v all="$all" -v first="$first" 'BEGIN {
     split(all, a, " "); split(first, f, " ")
@@ -38,10 +44,9 @@ tuned_kf() {
 # robot's bar is set against atan2, what the best Kalman filter of the courses gets.
 tuned_kf_robot() {
   local all band note
-  $G eval --model ghnet-temporal --platform robot --data "$1" --kf tuned >"$T/tuned.md"
+  note=$(tuned_eval "$1" robot)
   all=$(eval_row '**all**' <"$T/tuned.md")
   band=$(eval_row '1–2' <"$T/tuned.md")
-  note=$(head -n 1 "$T/tuned.md" | sed -n 's/.*kf tuned on this log: \(.*\))$/\1/p')
   echo
   awk -v note="$note" -v all="$all" -v band="$band" 'BEGIN {
     split(all, a, " "); split(band, b, " ")
