@@ -16,9 +16,11 @@
 //! * **Receivers**: 1, 2, 5 or 10 Hz; velocity noise σ_v per track log-uniform 0.02–0.3
 //!   m/s with a time-correlated part; optional first-order lag (τ up to 1.5 s, the
 //!   smoothing consumer receivers apply); rare glitches; fix gaps (seconds to minutes);
-//!   and one of three output styles: u-blox-like (raw velocity, mm/s, a rough sAcc),
-//!   RTKLIB-like (raw velocity, a nearly constant formal sAcc near 0.07 m/s), or
-//!   NMEA-like (speed and course only, course frozen below 0.1 m/s, no sAcc).
+//!   and one of five output styles: u-blox-like (raw velocity, mm/s, a rough sAcc),
+//!   RTKLIB-like (raw velocity, a nearly constant formal sAcc near 0.07 m/s),
+//!   NMEA-like (speed and course only, course frozen below 0.1 m/s, no sAcc),
+//!   consumer (smoothed, 0.000 at rest, no sAcc), or a u-blox with its static hold on
+//!   (as the consumer style, with the u-blox sAcc).
 //!
 //! Everything is seeded; a track is reproduced from `(parameters, seed)`.
 
@@ -39,32 +41,8 @@ const DT: f64 = 0.1;
 /// Largest lateral acceleration of simulated vehicles, m/s².
 const A_LAT_MAX: f64 = 4.0;
 
-/// What moves.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
-pub enum Platform {
-    /// A car: bicycle-model steering, parks and reverses.
-    Car,
-    /// A differential-drive robot or Segway: turns in place.
-    TurnInPlace,
-}
-
-/// How the receiver reports velocity.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
-pub enum ReceiverKind {
-    /// Raw velocity in mm/s and a rough sAcc (σ times 0.7–1.5).
-    Ublox,
-    /// Raw velocity and a nearly constant formal σ (RTKLIB's Doppler solution).
-    Rtklib,
-    /// Speed and course only: course frozen below 0.1 m/s, no accuracy.
-    Nmea,
-    /// A consumer receiver (phone, low-cost module): velocity smoothed with a lag of
-    /// 0.5–1.5 s, exactly 0.000 below a speed of 0.3–0.6 m/s (so the first moving
-    /// epoch jumps from zero), no accuracy. Held out of the shipped recipes: it is how
-    /// the tables show σ on a receiver the model has not met.
-    Consumer,
-}
+mod params;
+pub use params::{DriveParams, Platform, ReceiverKind};
 
 /// One epoch of a simulated track, with its truth.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -104,126 +82,6 @@ pub struct Track {
     pub split: Split,
     /// The epochs, in time order (gaps are missing epochs).
     pub samples: Vec<DriveSample>,
-}
-
-/// Parameters of [`simulate`].
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, clap::Args)]
-#[serde(default)]
-pub struct DriveParams {
-    /// Number of tracks.
-    #[arg(long, default_value_t = 200)]
-    pub tracks: usize,
-    /// Share of tracks that are turn-in-place platforms (the rest are cars).
-    #[arg(long, default_value_t = 0.3)]
-    pub platform_share: f64,
-    /// Shortest track, s.
-    #[arg(long, default_value_t = 300.0)]
-    pub track_min_s: f64,
-    /// Longest track, s.
-    #[arg(long, default_value_t = 1200.0)]
-    pub track_max_s: f64,
-    /// Output rates to draw from, Hz (each track draws one).
-    #[arg(long, value_delimiter = ',', default_value = "1,2,5,10")]
-    pub rates_hz: Vec<u32>,
-    /// Smallest per-axis velocity noise σ (m/s).
-    #[arg(long, default_value_t = 0.02)]
-    pub sigma_min: f64,
-    /// Largest per-axis velocity noise σ (m/s).
-    #[arg(long, default_value_t = 0.3)]
-    pub sigma_max: f64,
-    /// Largest receiver lag (first-order time constant, s); each track draws 0..this.
-    #[arg(long, default_value_t = 1.5)]
-    pub lag_max_s: f64,
-    /// Fix gaps per minute (Poisson).
-    #[arg(long, default_value_t = 0.3)]
-    pub gaps_per_min: f64,
-    /// Glitch probability per epoch.
-    #[arg(long, default_value_t = 5e-4)]
-    pub p_glitch: f64,
-    /// Stretches of poor sky (urban canyons: multipath) per minute (Poisson), each
-    /// 10 s to `bad_sky_max_s` long.
-    #[arg(long, default_value_t = 0.1)]
-    pub bad_sky_per_min: f64,
-    /// Longest stretch of poor sky, s.
-    #[arg(long, default_value_t = 90.0)]
-    pub bad_sky_max_s: f64,
-    /// Glitch probability per epoch under poor sky.
-    #[arg(long, default_value_t = 0.1)]
-    pub p_glitch_bad: f64,
-    /// Share of tracks in validation.
-    #[arg(long, default_value_t = 0.15)]
-    pub val_fraction: f64,
-    /// Share of tracks in test.
-    #[arg(long, default_value_t = 0.15)]
-    pub test_fraction: f64,
-    /// Receiver styles to draw from (each track draws one).
-    #[arg(
-        long,
-        value_enum,
-        value_delimiter = ',',
-        default_value = "ublox,rtklib,nmea"
-    )]
-    pub receivers: Vec<ReceiverKind>,
-    /// Turn-in-place platforms: slowest and fastest cruising speed, m/s.
-    #[arg(long, value_delimiter = ',', default_value = "0.5,1.8")]
-    pub platform_speed: Vec<f64>,
-    /// Turn-in-place platforms: slowest and fastest spin at a stop, °/s.
-    #[arg(long, value_delimiter = ',', default_value = "10,90")]
-    pub platform_spin: Vec<f64>,
-    /// Turn-in-place platforms: share of stops with a spin.
-    #[arg(long, default_value_t = 0.6)]
-    pub platform_spin_share: f64,
-}
-
-impl Default for DriveParams {
-    fn default() -> Self {
-        Self {
-            tracks: 200,
-            platform_share: 0.3,
-            track_min_s: 300.0,
-            track_max_s: 1200.0,
-            rates_hz: vec![1, 2, 5, 10],
-            sigma_min: 0.02,
-            sigma_max: 0.3,
-            lag_max_s: 1.5,
-            gaps_per_min: 0.3,
-            p_glitch: 5e-4,
-            bad_sky_per_min: 0.1,
-            bad_sky_max_s: 90.0,
-            p_glitch_bad: 0.1,
-            val_fraction: 0.15,
-            test_fraction: 0.15,
-            receivers: vec![
-                ReceiverKind::Ublox,
-                ReceiverKind::Rtklib,
-                ReceiverKind::Nmea,
-            ],
-            platform_speed: vec![0.5, 1.8],
-            platform_spin: vec![10.0, 90.0],
-            platform_spin_share: 0.6,
-        }
-    }
-}
-
-impl DriveParams {
-    /// The robots the shipped recipes do not train on: differential-drive platforms
-    /// that cruise at 0.3–2 m/s and spin in place at 20–60 °/s at most stops, as a
-    /// held-out style for the tables.
-    pub fn robots(mut self) -> Self {
-        self.platform_share = 1.0;
-        self.platform_speed = vec![0.3, 2.0];
-        self.platform_spin = vec![20.0, 60.0];
-        self.platform_spin_share = 0.9;
-        self
-    }
-
-    /// `(lo, hi)` of a two-value range parameter, or `default` when it is malformed.
-    fn range(v: &[f64], default: (f64, f64)) -> (f64, f64) {
-        match v {
-            [lo, hi] if lo.is_finite() && hi.is_finite() && lo <= hi => (*lo, *hi),
-            _ => default,
-        }
-    }
 }
 
 /// What the vehicle is asked to do for a while: reach `speed` (signed: negative backs
@@ -451,7 +309,9 @@ impl Receiver {
             // Only some receivers smooth; RTKLIB's epoch-by-epoch Doppler does not.
             lag_s: match kind {
                 ReceiverKind::Rtklib => 0.0,
-                ReceiverKind::Consumer => uniform(rng, 0.5, p.lag_max_s.max(0.5)),
+                ReceiverKind::Consumer | ReceiverKind::UbloxHold => {
+                    uniform(rng, 0.5, p.lag_max_s.max(0.5))
+                }
                 _ if rng.random::<f64>() < 0.5 => 0.0,
                 _ => uniform(rng, 0.2, p.lag_max_s),
             },
@@ -465,6 +325,38 @@ impl Receiver {
                 Platform::Car => (uniform(rng, 0.0, 2.5), uniform(rng, -0.3, 0.3)),
                 Platform::TurnInPlace => (uniform(rng, -0.25, 0.25), uniform(rng, -0.25, 0.25)),
             },
+        }
+    }
+
+    /// What the output style makes of velocity `v` (north, east; m/s) with `course` the
+    /// course it holds (radians) and `snapped` whether it reads 0.000 now: the reported
+    /// north and east velocity and sAcc (NaN: none).
+    fn report(
+        &self,
+        p: &DriveParams,
+        v: (f64, f64),
+        course: f64,
+        snapped: bool,
+    ) -> (f64, f64, f64) {
+        let (vn, ve) = v;
+        let (mn, me) = if snapped {
+            (0.0, 0.0)
+        } else {
+            (q(vn, 1e-3), q(ve, 1e-3))
+        };
+        match self.kind {
+            ReceiverKind::Ublox | ReceiverKind::UbloxHold => (
+                mn,
+                me,
+                q(self.sigma * self.sacc_factor * p.sacc_scale, 1e-3),
+            ),
+            ReceiverKind::Rtklib => (vn, ve, 0.07 * self.sacc_factor.sqrt()),
+            ReceiverKind::Nmea => {
+                let sp = q(vn.hypot(ve), 0.0514); // 0.1 knot
+                let cd = q(course.to_degrees(), 0.1).to_radians();
+                (sp * cd.cos(), sp * cd.sin(), f64::NAN)
+            }
+            ReceiverKind::Consumer => (mn, me, f64::NAN),
         }
     }
 }
@@ -615,22 +507,12 @@ fn observe(
         let speed = vn.hypot(ve);
         // Snaps to zero below its threshold (the track's sAcc factor sets it at
         // 0.3–0.6 m/s), so motion starts with a jump; its course holds while it does.
-        let snapped =
-            rx.kind == ReceiverKind::Consumer && speed < 0.3 + 0.375 * (rx.sacc_factor - 0.7);
+        let snapped = matches!(rx.kind, ReceiverKind::Consumer | ReceiverKind::UbloxHold)
+            && speed < 0.3 + 0.375 * (rx.sacc_factor - 0.7);
         if (speed >= 0.1 && !snapped) || course.is_nan() {
             course = ve.atan2(vn);
         }
-        let (vn, ve, sacc) = match rx.kind {
-            ReceiverKind::Ublox => (q(vn, 1e-3), q(ve, 1e-3), q(rx.sigma * rx.sacc_factor, 1e-3)),
-            ReceiverKind::Rtklib => (vn, ve, 0.07 * rx.sacc_factor.sqrt()),
-            ReceiverKind::Nmea => {
-                let sp = q(speed, 0.0514); // 0.1 knot
-                let cd = q(course.to_degrees(), 0.1).to_radians();
-                (sp * cd.cos(), sp * cd.sin(), f64::NAN)
-            }
-            ReceiverKind::Consumer if snapped => (0.0, 0.0, f64::NAN),
-            ReceiverKind::Consumer => (q(vn, 1e-3), q(ve, 1e-3), f64::NAN),
-        };
+        let (vn, ve, sacc) = rx.report(p, (vn, ve), course, snapped);
         out.push(DriveSample {
             t_s: k as f64 * DT,
             v_north: vn as f32,
@@ -801,5 +683,37 @@ mod tests {
             }
         }
         assert!(held > 1000, "{held} snapped epochs");
+    }
+
+    /// A u-blox with its static hold on snaps to 0.000 at rest as a consumer receiver
+    /// does and reports its sAcc on every epoch, standing or moving; `sacc_scale`
+    /// multiplies the u-blox sAcc and nothing else (the same seed draws the same track).
+    #[test]
+    fn a_static_hold_ublox_snaps_and_reports_its_sacc() {
+        let p = DriveParams {
+            tracks: 2,
+            receivers: vec![ReceiverKind::UbloxHold],
+            rates_hz: vec![5],
+            ..DriveParams::default()
+        };
+        let scaled = DriveParams {
+            sacc_scale: 3.0,
+            ..p.clone()
+        };
+        let (a, b) = (simulate(&p, 4), simulate(&scaled, 4));
+        let mut zeros = 0;
+        for (ta, tb) in a.iter().zip(&b) {
+            assert_eq!(ta.samples.len(), tb.samples.len());
+            for (x, y) in ta.samples.iter().zip(&tb.samples) {
+                assert!(x.speed_acc > 0.0, "an sAcc on every epoch");
+                assert!(
+                    (y.speed_acc - 3.0 * x.speed_acc).abs() <= 2e-3,
+                    "{x:?} {y:?}"
+                );
+                assert_eq!((x.v_north, x.v_east), (y.v_north, y.v_east));
+                zeros += usize::from(x.v_north == 0.0 && x.v_east == 0.0);
+            }
+        }
+        assert!(zeros > 100, "{zeros} snapped epochs");
     }
 }
