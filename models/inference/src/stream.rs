@@ -563,8 +563,12 @@ impl StreamPredictor {
         let fed = pending.had_prior && d.gain > 0.0;
         // The filter runs on courses; the answer is the body's heading.
         let psi = d.psi + modes.boresight_deg.to_radians();
-        let mut p = self.finish(psi, std, pending.had_prior, standing, fed, pending.epoch);
-        let [vn, ve, _, acc] = pending.epoch;
+        // The speed rule of `Held` goes by the sAcc the mode filter trusted; a robot's
+        // creep by the reported one (from the noise at rest alone, a car told it is a
+        // robot followed its noise's courses where it stood).
+        let [vn, ve, speed, acc] = pending.epoch;
+        let trusted = [vn, ve, speed, pending.step.acc];
+        let mut p = self.finish(psi, std, pending.had_prior, standing, fed, trusted);
         if p.status == Status::Stationary
             && stationary_course(modes, &h.state.vehicle, [vn, ve], prev_v, acc, pending.dt)
         {
@@ -1853,5 +1857,84 @@ mod tests {
         let (_, alone) = straight_at_1hz(without, f32::NAN, 0.173);
         assert_eq!(with, alone, "median σ");
         assert!(cover >= 0.9, "covered {cover}");
+    }
+
+    /// A 5 Hz car parked for a minute, then driving along its axis (`backs`: backing
+    /// out, its course a half turn off its heading) at 1 m/s. `zeros`: its receiver holds
+    /// static (0.000 at rest, its noise only while it moves); else it shows its noise,
+    /// σ 0.06 m/s per axis, at rest too. Either way it reports an sAcc of 0.4 m/s, over
+    /// six times that noise. Returns the seconds of driving answered `Held`, and the
+    /// worst error of the stand's answers.
+    fn parked_then_off(zeros: bool, backs: bool) -> (f32, f32) {
+        let (mut sp, mut h, mut rng) = temporal(23);
+        let head = 70f32;
+        let mut t = 0.0;
+        let mut ep = |speed: f32, course: f32, rng: &mut rand_chacha::ChaCha8Rng| {
+            t += 0.2;
+            let (s, c) = course.to_radians().sin_cos();
+            let quiet = zeros && speed == 0.0;
+            let mut n = || {
+                if quiet {
+                    0.0
+                } else {
+                    rng.random_range(-0.1f32..0.1)
+                }
+            };
+            Epoch {
+                t_s: t,
+                v_north: speed * c + n(),
+                v_east: speed * s + n(),
+                speed_acc: 0.4,
+            }
+        };
+        for _ in 0..150 {
+            sp.predict(&mut h, &ep(8.0, head, &mut rng));
+        }
+        for k in 0..25 {
+            sp.predict(&mut h, &ep(8.0 * (1.0 - k as f32 / 25.0), head, &mut rng));
+        }
+        let mut worst = 0f32;
+        for _ in 0..300 {
+            let p = sp.predict(&mut h, &ep(0.0, head, &mut rng));
+            let off = crate::head::wrap_rad((p.heading_deg - head).to_radians()).to_degrees();
+            worst = worst.max(off.abs());
+        }
+        let course = if backs { head + 180.0 } else { head };
+        let held = (0..50)
+            .filter(|_| sp.predict(&mut h, &ep(1.0, course, &mut rng)).status == Status::Held)
+            .count();
+        (held as f32 * 0.2, worst)
+    }
+
+    /// A car whose receiver reports several times the noise it shows (as many u-blox
+    /// receivers do) keeps its stand through that noise and leaves it within about a
+    /// second of driving off at 1 m/s, forward or backing out: the `3·sAcc` bars of the
+    /// release rule and of `Held` go by the noise the receiver has shown at rest, not
+    /// by its word (with the reported 0.4 m/s both stood at 1.2 m/s).
+    #[test]
+    fn a_pessimistic_sacc_does_not_hold_a_car_driving_off() {
+        for backs in [false, true] {
+            let (held, worst) = parked_then_off(false, backs);
+            assert!(held <= 1.2, "backs {backs}: {held} s of driving held");
+            assert!(
+                worst < 5.0,
+                "backs {backs}: the stand's answers {worst}° off"
+            );
+        }
+    }
+
+    /// The same car on a receiver that holds static: at rest it reads exactly zero, so
+    /// its sAcc says nothing about what it reads standing, and its stand ends at the
+    /// release rule's own bar.
+    #[test]
+    fn a_static_hold_receivers_sacc_does_not_hold_a_car_driving_off() {
+        for backs in [false, true] {
+            let (held, worst) = parked_then_off(true, backs);
+            assert!(held <= 1.2, "backs {backs}: {held} s of driving held");
+            assert!(
+                worst < 5.0,
+                "backs {backs}: the stand's answers {worst}° off"
+            );
+        }
     }
 }

@@ -341,6 +341,7 @@ mod tests {
             sigma_v: 0.1,
             speed: 1.0,
             has_acc: true,
+            acc: 0.1,
             lead_s: 0.0,
             lever_s: 0.0,
             lever_max: 0.0,

@@ -253,6 +253,27 @@ impl ModeParams {
     pub(super) fn rest_noise(&self, v: &Vehicle) -> f32 {
         v.noise / self.quantile_factor()
     }
+
+    /// The sAcc (m/s) the rules that decide whether a vehicle moves go by (the release
+    /// rule's bars, the speed under which a stand's answer is `Held`): the reported
+    /// `acc`, at most the noise the receiver has shown at rest (from its running low
+    /// quantile of slow speeds, [`Vehicle::noise`]; not under `sigma_floor`). Many u-blox
+    /// receivers report several times the noise they show; taken at its word, such an
+    /// sAcc kept cars driving off at 1 m/s under the `3·sAcc` bars, `Held` for over ten
+    /// seconds (the `--sacc-scale 3` sections of `models/reports/unmet.md`). The
+    /// estimate starts at the sAcc and falls only as the receiver reports slow speeds,
+    /// so an honest sAcc, or a receiver not yet seen at rest, is taken as reported. A
+    /// receiver that holds static shows no noise at rest and keeps its sAcc (which the
+    /// release rule sets aside). σ and the network keep the reported sAcc: the shared
+    /// real drive's is above its noise at rest, and σ from that noise took its shares
+    /// within 1σ and 2σ out of the bars (models/README.md, the release rule).
+    #[inline]
+    pub fn trusted_acc(&self, v: &Vehicle, acc: f32) -> f32 {
+        if !acc.is_finite() || v.holds_static() {
+            return acc;
+        }
+        acc.min(self.rest_noise(v).max(self.sigma_floor))
+    }
 }
 
 #[cfg(test)]

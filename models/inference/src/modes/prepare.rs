@@ -25,11 +25,13 @@ pub fn prepare(
     let speed = vn.hypot(ve);
     let course = ve.atan2(vn);
     update_noise(mp, &mut st.vehicle, speed, acc);
-    let run = track_motion(mp, st, vn, ve, acc, dt);
+    let trusted = mp.trusted_acc(&st.vehicle, acc); // whether it moves; σ keeps `acc`
+    let run = track_motion(mp, st, vn, ve, trusted, dt);
     keep_or_restore_held(mp, st, run);
     let cap2 = cap2();
     let prior = prior(st, speed, course, kf_sigma_v);
     let mut step = Step::holding(course, prior, cap2, speed, acc.is_finite());
+    step.acc = trusted;
     if !st.has_prior {
         return step;
     }

@@ -559,11 +559,12 @@ pub(super) fn track_motion(
     };
     let noise = mp.rest_noise(&st.vehicle).min(cap);
     let acc = if acc.is_finite() { acc } else { 0.0 };
-    let floor = RELEASE_SPEED.max(3.0 * acc);
     let v = [vn, ve];
     st.motion.since += dt;
     st.motion_alt.since += dt;
     let course_sigma = noise.max(acc).max(mp.sigma_floor) / speed.max(f32::MIN_POSITIVE);
+    let (noise, acc) = bar_terms(st, noise, acc);
+    let floor = RELEASE_SPEED.max(3.0 * acc);
     let p = (2.0 * st.log_sigma).exp();
     let on_axis = !(st.has_prior && off_axis_of_held(mp, st, vn, ve, p, course_sigma));
     // Along a sure held heading's axis the bar is a lower multiple of the noise: a
@@ -613,6 +614,23 @@ pub(super) fn track_motion(
         let displaced = st.motion;
         (st.motion, st.motion_alt, st.motion_skips) = (alt, displaced, 0);
         RunStep::New
+    }
+}
+
+/// The receiver's noise at rest and sAcc as the release rule's bars take them. A car's
+/// receiver that holds static reads exactly zero at rest, so neither its sAcc nor the
+/// noise guess it keeps says what it reads standing: its bar is [`RELEASE_SPEED`] (the
+/// release clock and a steady course sort out its blips). With `3·sAcc`, a u-blox with
+/// its static hold on kept a car backing out at 1 m/s `Held` for seconds (the
+/// u-blox-hold sections of models/reports/unmet.md). A platform's stand holds nothing,
+/// and one whose receiver's sAcc nears its speed, released, answered a heading its
+/// filter could no longer feed as `Held` for seconds.
+#[inline]
+fn bar_terms(st: &StepState, noise: f32, acc: f32) -> (f32, f32) {
+    if st.vehicle.holds_static() && st.vehicle.car {
+        (0.0, 0.0)
+    } else {
+        (noise, acc)
     }
 }
 

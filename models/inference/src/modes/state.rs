@@ -287,6 +287,11 @@ pub struct Step {
     pub speed: f32,
     /// The receiver reported a speed accuracy (sAcc) with this epoch.
     pub has_acc: bool,
+    /// The sAcc (m/s) the rules that decide whether the vehicle moves went by
+    /// ([`ModeParams::trusted_acc`]); NaN when none was reported.
+    ///
+    /// [`ModeParams::trusted_acc`]: crate::modes::ModeParams::trusted_acc
+    pub acc: f32,
     /// The receiver's course lag (s) the answer leads by ([`ModeParams::lead_s`]).
     ///
     /// [`ModeParams::lead_s`]: crate::modes::ModeParams
@@ -321,6 +326,7 @@ impl Step {
             sigma_v: f32::NAN,
             speed,
             has_acc,
+            acc: f32::NAN,
             lead_s: 0.0,
             lever_s: 0.0,
             lever_max: 0.0,
