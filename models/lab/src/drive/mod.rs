@@ -60,8 +60,9 @@ pub struct DriveSample {
     /// True horizontal speed, m/s.
     pub true_speed: f32,
     /// The receiver's own course output (u-blox headMot / NMEA course): atan2 of the
-    /// measured velocity, frozen below 0.1 m/s and while a consumer receiver holds
-    /// static (its velocity snapped to zero). A baseline, not a model input.
+    /// measured velocity, frozen below 0.1 m/s and while a receiver holds static (the
+    /// consumer and u-blox-hold styles: velocity snapped to zero). A baseline, not a
+    /// model input.
     pub receiver_course_deg: f32,
     /// True while the vehicle backs up.
     pub reversing: bool,
