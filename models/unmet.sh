@@ -55,11 +55,18 @@ tuned_kf_robot() {
     printf "Against a kf tuned on these drives themselves (%s, by grid search on their truth): %.2f° overall and %.2f° at 1–2 m/s (%.1f%% and %.1f%% better than atan2), ghnet-temporal %.2f° and %.2f° (%.1f%% and %.1f%%).\n", note, a[2], b[2], 100 * (a[1] - a[2]) / a[1], 100 * (b[1] - b[2]) / b[1], a[3], b[3], 100 * (a[1] - a[3]) / a[1], 100 * (b[1] - b[3]) / b[1] }'
 }
 # One section: 100 drives of vehicle $1 on receiver style $2 at $3 Hz, seed $4, the
-# u-blox sAcc scaled by $5 (empty: as usual), answered with each platform in $6; under
-# the usual sections' car and robot tables, the tuned-kf lines.
+# u-blox sAcc scaled by $5 (empty: as usual), answered with --platform auto; robots
+# also with robot, the consumer style with car and robot. Under the usual sections' car
+# and robot tables, the tuned-kf lines.
 section() {
-  local vehicle=$1 style=$2 hz=$3 seed=$4 scale=$5 args label="" platform
-  if [ "$vehicle" = robots ]; then args=$ROBOT; else args="--platform-share 0"; fi
+  local vehicle=$1 style=$2 hz=$3 seed=$4 scale=$5 args label="" platforms="auto" platform
+  if [ "$vehicle" = robots ]; then
+    args=$ROBOT
+    platforms="auto robot"
+  else
+    args="--platform-share 0"
+  fi
+  if [ "$style" = consumer ]; then platforms="auto car robot"; fi
   if [ -n "$scale" ]; then
     args="$args --sacc-scale $scale"
     label=", sAcc × $scale"
@@ -67,7 +74,7 @@ section() {
   # shellcheck disable=SC2086
   $G simulate drive --tracks 100 $args --receivers "$style" --rates-hz "$hz" \
     --seed "$seed" --output "$T/d.csv" >/dev/null
-  for platform in $6; do
+  for platform in $platforms; do
     echo
     echo "## $vehicle, $style receiver$label, $hz Hz, --platform $platform"
     echo
@@ -91,10 +98,7 @@ section() {
     for style in ublox rtklib nmea consumer; do
       for hz in 1 5 10; do
         seed=$((seed + 1))
-        platforms="auto"
-        if [ "$vehicle" = robots ]; then platforms="auto robot"; fi
-        if [ "$style" = consumer ]; then platforms="auto car robot"; fi
-        section "$vehicle" "$style" "$hz" "$seed" "" "$platforms"
+        section "$vehicle" "$style" "$hz" "$seed" ""
       done
     done
   done
@@ -106,9 +110,7 @@ section() {
     for style in ublox ublox-hold; do
       for hz in 1 5 10; do
         seed=$((seed + 1))
-        platforms="auto"
-        if [ "$vehicle" = robots ]; then platforms="auto robot"; fi
-        section "$vehicle" "$style" "$hz" "$seed" 3 "$platforms"
+        section "$vehicle" "$style" "$hz" "$seed" 3
       done
     done
   done

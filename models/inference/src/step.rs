@@ -348,7 +348,7 @@ mod tests {
             hold: false,
             sigma_v: 0.1,
             lead_s,
-            ..Step::holding(0.0, 0.0, 0.0, 1.5, false)
+            ..Step::holding(0.0, 0.0, 0.0, 1.5, f32::NAN)
         };
         let log_sigma = 5f32.to_radians().ln();
         let map = maps.apply(false, true, false, 5.0);
@@ -377,7 +377,7 @@ mod tests {
             moving: true,
             hold: false,
             sigma_v: 0.1,
-            ..Step::holding(0.0, 0.0, 0.0, 0.5, true)
+            ..Step::holding(0.0, 0.0, 0.0, 0.5, 0.1)
         };
         let log_sigma = 5f32.to_radians().ln();
         let sure = reported_sigma(&step, log_sigma, 0.0, &st, &maps);
@@ -401,7 +401,7 @@ mod tests {
             moving: true,
             hold: false,
             sigma_v: 0.1,
-            ..Step::holding(course, 0.0, 0.0, speed, true)
+            ..Step::holding(course, 0.0, 0.0, speed, 0.1)
         }
     }
 

@@ -281,7 +281,7 @@ mod tests {
             sigma_v: 0.1,
             lever_s: 1.25,
             lever_max: 0.25,
-            ..Step::holding(0.0, 0.0, 0.0, 1.0, true)
+            ..Step::holding(0.0, 0.0, 0.0, 1.0, 0.1)
         }
     }
 

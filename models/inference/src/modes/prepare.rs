@@ -30,8 +30,7 @@ pub fn prepare(
     keep_or_restore_held(mp, st, run);
     let cap2 = cap2();
     let prior = prior(st, speed, course, kf_sigma_v);
-    let mut step = Step::holding(course, prior, cap2, speed, acc.is_finite());
-    step.acc = trusted;
+    let mut step = Step::holding(course, prior, cap2, speed, trusted);
     if !st.has_prior {
         return step;
     }

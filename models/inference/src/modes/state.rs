@@ -311,8 +311,9 @@ pub struct Step {
 
 impl Step {
     /// A step that holds `prior` with the uniform variance `cap2` (what an epoch is
-    /// until the filter finds it moves): no gain, no mode, no lead.
-    pub(crate) fn holding(course: f32, prior: f32, cap2: f32, speed: f32, has_acc: bool) -> Step {
+    /// until the filter finds it moves): no gain, no mode, no lead. `acc` is the sAcc the
+    /// rules go by, NaN when none was reported.
+    pub(crate) fn holding(course: f32, prior: f32, cap2: f32, speed: f32, acc: f32) -> Step {
         Step {
             course,
             prior,
@@ -325,8 +326,8 @@ impl Step {
             glitch: false,
             sigma_v: f32::NAN,
             speed,
-            has_acc,
-            acc: f32::NAN,
+            has_acc: acc.is_finite(),
+            acc,
             lead_s: 0.0,
             lever_s: 0.0,
             lever_max: 0.0,
