@@ -83,7 +83,7 @@ pub use commit::{
     SENSE_SIGMA_DEG, YAW_TAU_S,
 };
 pub(crate) use noise::random_walk_variance;
-pub use params::{ModeParams, LEVER_M};
+pub use params::{ModeParams, LEVER_M, PESSIMISTIC_SACC_RATIO};
 pub use prepare::{prepare, ESCAPE_NOISE_K, STEER_IN_NOISE_K};
 pub use release::{
     stationary_course, BRAKE_MAX, GEAR_CHANGE_S, LONG_STAND_S, RELEASE_CONT_ACC_K,

@@ -101,6 +101,25 @@ pub(super) fn measured(
     (sig, shat, r, r < mp.moving_r || released)
 }
 
+/// The course σ (radians) the filter's gain weighs this epoch's course by: `r`, the one
+/// from the σ_v in use, or for a moving vehicle not known to be a car the one from
+/// [`ModeParams::gain_acc`] (the noise its receiver has shown at rest, where the
+/// reported sAcc is pessimistic).
+#[inline]
+pub(super) fn gain_r(
+    mp: &ModeParams,
+    st: &StepState,
+    speed: f32,
+    acc: f32,
+    r: f32,
+    moving: bool,
+) -> f32 {
+    if st.vehicle.car || !moving {
+        return r;
+    }
+    measurement(speed, platform_sigma_v(mp, mp.gain_acc(&st.vehicle, acc))).1
+}
+
 /// The prior variance (radians²) of a step from `st` after `dt` before any steering:
 /// the class's random walk (a car's is small: cars do not turn in place; a platform
 /// `moving` on epochs at most [`SCATTER_SMOOTH_DT`] apart does not spin either,

@@ -1,7 +1,9 @@
 //! The first half of an epoch: time, noise, the glitch gate and the direction rules,
 //! ending in the step the network corrects.
 
-use super::noise::{cap2, driving_variance, measured, measurement, update_noise, walk_variance};
+use super::noise::{
+    cap2, driving_variance, gain_r, measured, measurement, update_noise, walk_variance,
+};
 use super::params::ModeParams;
 use super::release::{glitch, keep_or_restore_held, track_motion, RELEASE_SPEED};
 use super::scatter::update_scatter;
@@ -44,6 +46,7 @@ pub fn prepare(
     step.hold = false;
     update_scatter(st, vn, ve, dt);
     let (sig, shat, r, moving) = measured(mp, st, speed, acc);
+    let r_gain = gain_r(mp, st, speed, acc, r, moving);
     let p_walk = walk_variance(mp, st, dt, moving);
     // The gate first: a glitch must neither change the direction nor count as driving.
     step.glitch = glitch(mp, st, vn, ve, speed, sig, dt, moving, p_walk, r);
@@ -76,7 +79,7 @@ pub fn prepare(
     }
     step.prior = st.psi;
     step.p = p;
-    step.r2 = r * r;
+    step.r2 = r_gain * r_gain;
     // A car at rest has no course: feeding its noise in turned held headings. (A slow
     // car above the noise still feeds, with the small gain its σ gives.)
     step.k = if step.glitch || car_at_rest || step.r2 >= cap2 * 0.999 {
