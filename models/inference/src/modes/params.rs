@@ -285,8 +285,7 @@ impl ModeParams {
     /// epoch moves, the glitch gate, the network's sAcc input, and the gain of epochs
     /// that do not move. There, at a stand or a crawl, the lower noise made courses of
     /// noise, and of an antenna swinging round as the robot turns in place, worth
-    /// following: the held-out platforms lost 1.3% overall, and a noisier copy of the
-    /// shared drive had its held heading turned by 100°. A receiver that holds static
+    /// following: the held-out platforms lost 1.3% overall. A receiver that holds static
     /// shows no noise at rest and keeps its sAcc.
     #[inline]
     pub fn gain_acc(&self, v: &Vehicle, acc: f32) -> f32 {
@@ -305,7 +304,9 @@ impl ModeParams {
 /// How many times the noise a receiver has shown at rest its sAcc must be for a
 /// platform's filter gain to go by that noise instead ([`ModeParams::gain_acc`]). The
 /// simulated u-blox sAcc is 0.7–1.5 times the receiver's noise, so honest receivers
-/// stay under it; the same receivers reporting three times that are over it.
+/// stay under it; the same receivers reporting three times that are over it. Without
+/// the ratio (and at every epoch), a noisier copy of the shared real drive (its sAcc
+/// kept, near its noise) had a held heading turned by 100° at the start.
 pub const PESSIMISTIC_SACC_RATIO: f32 = 2.0;
 
 #[cfg(test)]
