@@ -104,7 +104,8 @@ pub(super) fn measured(
 /// The course σ (radians) the filter's gain weighs this epoch's course by: `r`, the one
 /// from the σ_v in use, or for a moving vehicle not known to be a car the one from
 /// [`ModeParams::gain_acc`] (the noise its receiver has shown at rest, where the
-/// reported sAcc is pessimistic).
+/// reported sAcc is pessimistic). Where `gain_acc` keeps the sAcc, `r` already is that
+/// course σ: a platform's σ_v is [`platform_sigma_v`] of the sAcc.
 #[inline]
 pub(super) fn gain_r(
     mp: &ModeParams,
@@ -117,7 +118,11 @@ pub(super) fn gain_r(
     if st.vehicle.car || !moving {
         return r;
     }
-    measurement(speed, platform_sigma_v(mp, mp.gain_acc(&st.vehicle, acc))).1
+    let gain = mp.gain_acc(&st.vehicle, acc);
+    if !acc.is_finite() || gain == acc {
+        return r;
+    }
+    measurement(speed, platform_sigma_v(mp, gain)).1
 }
 
 /// The prior variance (radians²) of a step from `st` after `dt` before any steering:
