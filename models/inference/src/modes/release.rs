@@ -646,8 +646,7 @@ fn bar_terms(st: &StepState, noise: f32, acc: f32) -> (f32, f32) {
 /// simulated cars back out of their space first, answered a half turn off.)
 ///
 /// Only when `v` and the velocity the epoch before used (`prev_v`, `dt` seconds
-/// earlier) are both over [`ROBOT_COURSE_NOISE_K`] times the receiver's noise (`acc`,
-/// the sAcc, NaN when absent; else the noise measured at rest) and point within
+/// earlier) are both over [`ROBOT_COURSE_NOISE_K`] times the receiver's noise and point within
 /// [`RELEASE_COURSE_DEG`] plus [`ROBOT_COURSE_TURN_DEG_S`] over `dt` of each other
 /// (at most 85°): a creeping robot's velocity keeps its direction, or turns it as
 /// fast as a robot turns, a noisy receiver at rest before its noise is measured does
@@ -657,6 +656,14 @@ fn bar_terms(st: &StepState, noise: f32, acc: f32) -> (f32, f32) {
 /// than 75°/s now passes when its antenna's velocity is over the noise; the 1 Hz robot
 /// sections measured for [`ROBOT_COURSE_TURN_DEG_S`] (robots spinning at 20–60°/s,
 /// antennas up to 0.25 m off the axis) count that cost in.
+///
+/// The receiver's noise: without an sAcc (`acc` NaN), the noise measured at rest. A
+/// declared robot's is the sAcc the receiver has earned ([`ModeParams::trusted_acc`]):
+/// a u-blox reporting three times its sAcc kept robots creeping off a spin at
+/// 0.1–0.5 m/s on their stale heading (the sAcc × 3 robot sections of
+/// models/reports/unmet.md). An `auto` vehicle's is the reported sAcc: it may be a
+/// car whose held heading is right, and by its receiver's noise at rest the held-out
+/// platforms of the recipe, cars among them until known, did worse at their stops.
 ///
 /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
 #[inline]
@@ -672,10 +679,12 @@ pub fn stationary_course(
     if vehicle.platform != Platform::Robot && !turns {
         return false;
     }
-    let noise = if acc.is_finite() {
-        acc
-    } else {
+    let noise = if !acc.is_finite() {
         mp.rest_noise(vehicle)
+    } else if vehicle.platform == Platform::Robot {
+        mp.trusted_acc(vehicle, acc)
+    } else {
+        acc
     };
     let bar = ROBOT_COURSE_NOISE_K * noise;
     let turn = (RELEASE_COURSE_DEG + ROBOT_COURSE_TURN_DEG_S * dt.max(0.0)).min(85.0);

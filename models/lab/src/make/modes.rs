@@ -408,7 +408,10 @@ mod tests {
         simulated(&p, seed)
     }
 
-    /// The search never ends worse than it started, and a fixed platform is kept.
+    /// The search never ends worse than it started (the model's constants with the
+    /// platform given), and a fixed platform is kept. Against the model's own platform
+    /// (`mae_before`) it promises nothing: a platform given is not second-guessed, and
+    /// on these three short drives `robot` starts 1.9° worse than `auto`.
     #[test]
     fn fit_modes_never_worsens_and_keeps_a_fixed_platform() {
         let model = Model::builtin("ghnet-temporal").expect("built in");
@@ -420,7 +423,11 @@ mod tests {
         };
         let tracks = simulated(&p, 5);
         let f = fit_modes(&model, &tracks, Some(Platform::Robot));
-        assert!(f.mae_after <= f.mae_before, "{f:?}");
+        let start = ModeParams {
+            platform: Platform::Robot,
+            ..modes_of(&model)
+        };
+        assert!(f.mae_after <= mae_with(&model, start, &tracks), "{f:?}");
         assert_eq!(f.modes.platform, Platform::Robot);
         assert!((mae_with(&model, f.modes, &tracks) - f.mae_after).abs() < 1e-4);
     }
