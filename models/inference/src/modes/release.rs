@@ -646,12 +646,12 @@ fn bar_terms(st: &StepState, noise: f32, acc: f32) -> (f32, f32) {
 /// simulated cars back out of their space first, answered a half turn off.)
 ///
 /// Only when `v` and the velocity the epoch before used (`prev_v`, `dt` seconds
-/// earlier) are both over [`ROBOT_COURSE_NOISE_K`] times the receiver's noise and point within
-/// [`RELEASE_COURSE_DEG`] plus [`ROBOT_COURSE_TURN_DEG_S`] over `dt` of each other
-/// (at most 85°): a creeping robot's velocity keeps its direction, or turns it as
-/// fast as a robot turns, a noisy receiver at rest before its noise is measured does
-/// not for long, and neither, at 5 and 10 Hz, does the velocity a spin in place gives
-/// an antenna off its axis. Without that steadiness, a cold start on a noisy NMEA
+/// earlier) are both over [`ROBOT_COURSE_NOISE_K`] times the receiver's noise (below)
+/// and point within [`RELEASE_COURSE_DEG`] plus [`ROBOT_COURSE_TURN_DEG_S`] over `dt`
+/// of each other (at most 85°): a creeping robot's velocity keeps its direction, or
+/// turns it as fast as a robot turns, a noisy receiver at rest before its noise is
+/// measured does not for long, and neither, at 5 and 10 Hz, does the velocity a spin
+/// in place gives an antenna off its axis. Without that steadiness, a cold start on a noisy NMEA
 /// receiver and a robot spinning at 1 Hz were answered sideways. At 1 Hz a spin slower
 /// than 75°/s now passes when its antenna's velocity is over the noise; the 1 Hz robot
 /// sections measured for [`ROBOT_COURSE_TURN_DEG_S`] (robots spinning at 20–60°/s,
@@ -662,8 +662,8 @@ fn bar_terms(st: &StepState, noise: f32, acc: f32) -> (f32, f32) {
 /// a u-blox reporting three times its sAcc kept robots creeping off a spin at
 /// 0.1–0.5 m/s on their stale heading (the sAcc × 3 robot sections of
 /// models/reports/unmet.md). An `auto` vehicle's is the reported sAcc: it may be a
-/// car whose held heading is right, and by its receiver's noise at rest the held-out
-/// platforms of the recipe, cars among them until known, did worse at their stops.
+/// car whose held heading is right, and by the earned sAcc the recipe's held-out
+/// platforms did 0.3% worse at their stops.
 ///
 /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
 #[inline]
