@@ -651,11 +651,11 @@ fn bar_terms(st: &StepState, noise: f32, acc: f32) -> (f32, f32) {
 /// of each other (at most 85°): a creeping robot's velocity keeps its direction, or
 /// turns it as fast as a robot turns, a noisy receiver at rest before its noise is
 /// measured does not for long, and neither, at 5 and 10 Hz, does the velocity a spin
-/// in place gives an antenna off its axis. Without that steadiness, a cold start on a noisy NMEA
-/// receiver and a robot spinning at 1 Hz were answered sideways. At 1 Hz a spin slower
-/// than 75°/s now passes when its antenna's velocity is over the noise; the 1 Hz robot
-/// sections measured for [`ROBOT_COURSE_TURN_DEG_S`] (robots spinning at 20–60°/s,
-/// antennas up to 0.25 m off the axis) count that cost in.
+/// in place gives an antenna off its axis. Without that steadiness, a cold start on a
+/// noisy NMEA receiver and a robot spinning at 1 Hz were answered sideways. At 1 Hz a
+/// spin slower than 75°/s now passes when its antenna's velocity is over the noise;
+/// the 1 Hz robot sections measured for [`ROBOT_COURSE_TURN_DEG_S`] (robots spinning
+/// at 20–60°/s, antennas up to 0.25 m off the axis) count that cost in.
 ///
 /// The receiver's noise: without an sAcc (`acc` NaN), the noise measured at rest. A
 /// declared robot's is the sAcc the receiver has earned ([`ModeParams::trusted_acc`]):
