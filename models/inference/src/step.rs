@@ -311,6 +311,8 @@ pub(crate) fn step_and_sigma(
         }
     }
     let std = reported_sigma(step, d.log_sigma, y[2], st, maps);
+    // A stand that saw motion off its axis: the held heading may be stale.
+    let std = std.max(crate::modes::stand_doubt(st, step, dt));
     // Driving answers only: not a glitch burst that has not (yet) released a stand,
     // nor a release off a stand's axis that may still give the stand its heading back.
     if st.moving_now() && st.driving && st.before_release.is_none() {

@@ -49,7 +49,9 @@
 //!   the last used epoch, confirmed by the next epoch, and (for `axis_secs`) along the
 //!   axis of a sure held heading. On the simulator's validation cars this cut the
 //!   standing epochs' error, median and tail: most of it had been glitches and noise
-//!   turning a parked car (the stopped rows of models/reports/ghnet-temporal.md).
+//!   turning a parked car (the stopped rows of models/reports/ghnet-temporal.md). A
+//!   stand whose velocity, averaged over a few seconds, shows steady motion off that
+//!   axis keeps its heading, and its σ covers the turn ([`stand_doubt`]).
 //!
 //! Until the history's first epoch that the tuned `kf` would use (its measurement gate
 //! `σ_v/ŝ` below the uniform σ), the model answers exactly what `kf` answers: the first
@@ -65,6 +67,7 @@
 
 mod approach;
 mod commit;
+mod doubt;
 mod noise;
 mod params;
 mod prepare;
@@ -81,6 +84,10 @@ pub use approach::{
 pub use commit::{
     commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR, SENSE_RUN_M,
     SENSE_SIGMA_DEG, YAW_TAU_S,
+};
+pub use doubt::{
+    stand_doubt, STAND_DOUBT_CLIP_K, STAND_DOUBT_NOISE_K, STAND_DOUBT_SIGMA_K, STAND_DOUBT_STEADY,
+    STAND_DOUBT_TAU_S,
 };
 pub(crate) use noise::random_walk_variance;
 pub use params::{ModeParams, LEVER_M, PESSIMISTIC_SACC_RATIO};

@@ -160,6 +160,20 @@ pub struct StepState {
     pub turn_seen: bool,
     /// The vehicle and its receiver.
     pub vehicle: Vehicle,
+    /// A car not driving: its velocity (north, east; m/s) averaged over
+    /// [`STAND_DOUBT_TAU_S`], each epoch's speed clipped ([`stand_doubt`]); zero
+    /// otherwise.
+    ///
+    /// [`STAND_DOUBT_TAU_S`]: crate::modes::STAND_DOUBT_TAU_S
+    /// [`stand_doubt`]: crate::modes::stand_doubt
+    pub stand_v: [f32; 2],
+    /// Its square speed averaged alike (m²/s²; NaN until the average starts, then
+    /// starting from the noise's `2σ_v²`): how steady `stand_v` is.
+    pub stand_p: f32,
+    /// The course (radians) `stand_v` last showed motion on in this stand, NaN when
+    /// none: a car moves along its axis, so one off the held heading's says the car
+    /// has turned.
+    pub stand_axis: f32,
 }
 
 impl StepState {
@@ -203,6 +217,9 @@ impl StepState {
         stood: false,
         turn_seen: false,
         vehicle: Vehicle::UNKNOWN,
+        stand_v: [0.0; 2],
+        stand_p: f32::NAN,
+        stand_axis: f32::NAN,
     };
 
     /// An empty history of a source on `platform`.
