@@ -26,7 +26,9 @@
 //!   allows (`k_max`, `a_lat`), so a stopped car holds its heading exactly. One that
 //!   leaves a stand off the axis it stood on and keeps going has shown that it turns in
 //!   place ([`Vehicle::turns`]): at its stands, a steady creep is answered with its
-//!   course, as a declared robot's is.
+//!   course, as a declared robot's is; a car that leaves a stand so is taken for a
+//!   platform again until it drives fast, unless it has driven faster than any robot
+//!   ([`SURE_CAR_SPEED`]: then the stand's heading was stale, not the class).
 //! * **Receivers lie.** The measurement σ is the receiver's noise over the speed, with
 //!   the noise taken as the larger of the reported sAcc and a running estimate from the
 //!   speeds the receiver reports when slow (a low quantile: a stopped vehicle's speed is
@@ -111,7 +113,7 @@ pub use start::START_S;
 pub use state::{HeldHeading, MotionRun, Step, StepState};
 pub use vehicle::{
     Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED, HOLD_MIN_ZEROS, HOLD_ZEROS_PER_CREEP,
-    TURN_IN_PLACE_DEG, TURN_RUN_S, TURN_STAND_S, TURN_SURE_DEG,
+    SURE_CAR_SPEED, TURN_IN_PLACE_DEG, TURN_RUN_S, TURN_STAND_S, TURN_SURE_DEG,
 };
 
 #[cfg(test)]
@@ -274,10 +276,15 @@ mod tests {
 
     /// [`reversing_car`] backing up at `speed` on a receiver reporting sAcc `acc`.
     fn backing_up(epochs: usize, speed: f32, acc: f32) -> StepState {
+        backing_up_after(8.0, epochs, speed, acc)
+    }
+
+    /// [`backing_up`] after driving north at `drive` m/s (8 s).
+    fn backing_up_after(drive: f32, epochs: usize, speed: f32, acc: f32) -> StepState {
         let mut st = StepState::EMPTY;
         along_acc(&mut st, 0.0, 0.0, acc);
         for _ in 0..8 {
-            along_acc(&mut st, 8.0, 0.0, acc);
+            along_acc(&mut st, drive, 0.0, acc);
         }
         for _ in 0..3 {
             along_acc(&mut st, 0.0, 0.0, acc);
@@ -289,13 +296,14 @@ mod tests {
         st
     }
 
-    /// A car that backed out, stood, then drove off sideways for good turned in place:
-    /// it is no car, and a platform has no reverse mode, so its answer is its course,
-    /// not the course turned by the half turn it was reversing with.
+    /// A car (it drove at 4 m/s, as fast as some robots) that backed out, stood, then
+    /// drove off sideways for good turned in place: it is no car, and a platform has no
+    /// reverse mode, so its answer is its course, not the course turned by the half turn
+    /// it was reversing with.
     #[test]
     fn a_car_demoted_while_reversing_answers_its_course() {
         let mp = ModeParams::default();
-        let mut st = reversing_car(3);
+        let mut st = backing_up_after(4.0, 3, 1.0, 0.1);
         for _ in 0..3 {
             along(&mut st, 0.0, 0.0);
         }
@@ -308,6 +316,38 @@ mod tests {
         assert!(!st.vehicle.car && !st.reverse, "turned in place: {st:?}");
         let off = wrap_rad(last - 90f32.to_radians()).to_degrees();
         assert!(off.abs() < 10.0, "{off}° off its course: {st:?}");
+    }
+
+    /// A car that stood after driving north and leaves its stand eastwards at 1.5 m/s
+    /// (a turn the stand did not follow) is demoted when it drove at 4 m/s, which some
+    /// robots do, and stays a car when it drove at 8 m/s, faster than any robot
+    /// ([`SURE_CAR_SPEED`]); either way its answer follows the departure.
+    #[test]
+    fn a_car_that_drove_faster_than_robots_is_not_demoted() {
+        let mp = ModeParams::default();
+        for (drive, car) in [(4.0, false), (8.0, true)] {
+            let mut st = StepState::EMPTY;
+            along(&mut st, 0.0, 0.0);
+            for _ in 0..8 {
+                along(&mut st, drive, 0.0);
+            }
+            for _ in 0..5 {
+                along(&mut st, 0.0, 0.0);
+            }
+            assert!(st.vehicle.car, "{drive} m/s: {st:?}");
+            let mut last = 0.0;
+            for _ in 0..8 {
+                let (s, c) = 90f32.to_radians().sin_cos();
+                let step = prepare(&mp, 0.5, &mut st, 1.5 * c, 1.5 * s, 0.1, 1.0);
+                last = commit(&mut st, &step, &[0.0, 0.0, 0.0], 1.0).psi;
+            }
+            assert_eq!(st.vehicle.car, car, "{drive} m/s: {st:?}");
+            let off = wrap_rad(last - 90f32.to_radians()).to_degrees();
+            assert!(
+                off.abs() < 10.0,
+                "{drive} m/s: {off}° off its course: {st:?}"
+            );
+        }
     }
 
     /// A car that backed into a space and leaves it forward is answered forward: a

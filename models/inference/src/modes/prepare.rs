@@ -9,7 +9,7 @@ use super::release::{glitch, keep_or_restore_held, track_motion, RELEASE_SPEED};
 use super::scatter::update_scatter;
 use super::start::started;
 use super::state::{Step, StepState};
-use super::vehicle::{Platform, FAST_EPOCHS};
+use super::vehicle::{Platform, FAST_EPOCHS, SURE_CAR_SPEED};
 use crate::head::{facing, wrap_rad, MAX_STD_DEG};
 
 /// The first half of an epoch: time, noise, the rules; mutates the non-heading parts of
@@ -176,6 +176,14 @@ fn direction_rules(
     {
         st.vehicle.car = true;
     }
+    // Faster than any robot for as long: a car for good.
+    let v = &mut st.vehicle;
+    v.t_sure = if counts && speed > SURE_CAR_SPEED {
+        v.t_sure + dt
+    } else {
+        0.0
+    };
+    v.sure_car |= v.car && v.t_sure >= mp.fast_secs;
 }
 
 /// Times the course's noise (the receiver's noise σ over each epoch's speed) by which

@@ -383,7 +383,7 @@ pub(super) fn glitch(
     } else if standing && st.released() {
         // A second of plain motion on a steady course ends any stand: a car that did
         // not leave along its axis turned in place (or its held heading was wrong).
-        if off_axis_of_held(mp, st, vn, ve, p, r) && st.vehicle.platform == Platform::Auto {
+        if off_axis_of_held(mp, st, vn, ve, p, r) && demotable(st) {
             demote(st);
         }
         false
@@ -396,7 +396,7 @@ pub(super) fn glitch(
         let sideways = off_axis_of_held(mp, st, vn, ve, p, r);
         let reject = unreachable(mp.a_max, elapsed)
             || (moving && (!confirmed || (sideways && elapsed <= mp.axis_secs)));
-        if !reject && moving && sideways && st.vehicle.platform == Platform::Auto {
+        if !reject && moving && sideways && demotable(st) {
             // It kept leaving sideways: it turned in place, so it is no car (a car
             // shows itself again by driving fast).
             demote(st);
@@ -487,6 +487,14 @@ fn outlier_before(mp: &ModeParams, st: &StepState, v: [f32; 2], sig: f32, dt: f3
     let glitch = (v1[0] - v0[0]).hypot(v1[1] - v0[1]);
     // In a row, all the time since `prev_v0` is its gap to `prev_v` and this epoch's.
     back < glitch && back <= mp.a_max * (st.gap0 + dt) + 3.0 * sig
+}
+
+/// Whether a car that leaves its stand sideways may be demoted: an `auto` vehicle that
+/// has not driven faster than any robot ([`Vehicle::sure_car`]).
+///
+/// [`Vehicle::sure_car`]: crate::modes::Vehicle::sure_car
+fn demotable(st: &StepState) -> bool {
+    st.vehicle.platform == Platform::Auto && !st.vehicle.sure_car
 }
 
 /// A car that left its stand sideways turned in place: it is no car (it shows itself

@@ -21,6 +21,16 @@ pub const HOLD_MIN_ZEROS: u32 = 5;
 /// Fewest epochs above `fast_speed` that make a vehicle a car.
 pub const FAST_EPOCHS: u16 = 5;
 
+/// Speed (m/s) that a vehicle driving above it for `fast_secs` (in a run that makes it
+/// a car) shows is no robot: ground robots drive at walking pace, the simulated ones
+/// at 0.3–2 m/s. Such a car is never demoted by a departure off its stand's axis (the
+/// release rule's sign of a turn in place): on a noisy receiver a car that turned in
+/// a slow manoeuvre the stand did not follow leaves that way too, and demoted, its
+/// stands until it drove fast again held nothing (the uniform σ, the noise's course).
+/// On the simulated car sections that cost up to 6% (1 Hz NMEA), on the shared drive's
+/// noisy copies up to 10% (models/reports/unmet.md, noisy-real.md).
+pub const SURE_CAR_SPEED: f32 = 6.0;
+
 /// Degrees off the axis of the heading an `auto` vehicle not known to be a car stood
 /// with (neither along it nor against it) by which its departure must leave to show
 /// that it turned in place ([`Vehicle::turns`]). A car that backs out, or drives off
@@ -120,6 +130,13 @@ pub struct Vehicle {
     ///
     /// [`stationary_course`]: crate::modes::stationary_course
     pub turns: bool,
+    /// Seconds of the current run of fast epochs (those that count towards `car`) above
+    /// [`SURE_CAR_SPEED`].
+    pub t_sure: f32,
+    /// Whether the vehicle has driven above [`SURE_CAR_SPEED`] for `fast_secs`: faster
+    /// than any robot, so a car whatever its stands show; kept through every reset but
+    /// a new history.
+    pub sure_car: bool,
 }
 
 impl Vehicle {
@@ -132,6 +149,8 @@ impl Vehicle {
         zeros: 0,
         creeps: 0,
         turns: false,
+        t_sure: 0.0,
+        sure_car: false,
     };
 
     /// Record what one epoch's speed says about a static hold (a speed of exactly zero
