@@ -4,13 +4,14 @@
 //! A car standing still holds its heading exactly, and leaves the stand only on motion
 //! the release rule trusts (at least [`RELEASE_SPEED`], steady, confirmed). A parking
 //! manoeuvre on a noisy receiver can stay under that bar: reversing and turning at
-//! 0.5–1 m/s where single epochs of the receiver's noise read as fast. The stand then holds its
-//! approach's heading while the car turns, and a held σ of a few degrees puts a
-//! quarter-turn error far outside 2σ for as long as the car stays parked. The velocity
+//! 0.5–1 m/s, where single epochs of the receiver's noise read as fast. The stand then
+//! holds its approach's heading while the car turns, and a held σ of a few degrees puts
+//! a quarter-turn error far outside 2σ for as long as the car stays parked. The velocity
 //! averaged over a few seconds shows such motion where single epochs do not; a car
 //! moves along its axis, so an average well over the noise and off the held axis means
-//! the car has turned. The answer keeps the held heading (a release on such evidence
-//! cost more on real drives than it gained), but its σ covers the turn.
+//! the car has turned. The answer keeps the held heading (turned to the average's axis
+//! instead, it lost as much as it gained on the noisy copies and up to 19% on 1 Hz car
+//! sections), but its σ covers the turn.
 //!
 //! [`RELEASE_SPEED`]: crate::modes::RELEASE_SPEED
 
@@ -22,11 +23,12 @@ use crate::head::{wrap_rad, MAX_STD_DEG};
 pub const STAND_DOUBT_TAU_S: f32 = 3.0;
 
 /// The averaged velocity shows motion when it exceeds this multiple of the filter's
-/// velocity σ (`Step::sigma_v`) and is steady ([`STAND_DOUBT_STEADY`]). On simulated car sections the share within 1σ grew
-/// by at most 0.7 points (1 Hz RTKLIB cars: the shortest averages, an sAcc that
-/// understates the noise); on the shared drive's noisy copies it covers the parking
-/// manoeuvre at 0.1 m/s of noise, and on some at 0.2, where the noise estimate reads
-/// the manoeuvre as noise (models/reports/noisy-real.md).
+/// velocity σ (`Step::sigma_v`) and is steady ([`STAND_DOUBT_STEADY`]). On the car
+/// sections of models/reports/unmet.md the share within 1σ grew by at most 0.7 points
+/// (1 Hz NMEA: the shortest averages); on the shared drive's noisy copies
+/// (models/reports/noisy-real.md) it covers the parking manoeuvre at 0.1 m/s of noise,
+/// and on two copies of six at 0.2, where the noise estimate reads the manoeuvre as
+/// noise.
 pub const STAND_DOUBT_NOISE_K: f32 = 1.2;
 
 /// An epoch's speed enters the average clipped at this multiple of the velocity σ: a

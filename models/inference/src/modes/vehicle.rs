@@ -27,8 +27,9 @@ pub const FAST_EPOCHS: u16 = 5;
 /// release rule's sign of a turn in place): on a noisy receiver a car that turned in
 /// a slow manoeuvre the stand did not follow leaves that way too, and demoted, its
 /// stands until it drove fast again held nothing (the uniform σ, the noise's course).
-/// On the simulated car sections that cost up to 6% (1 Hz NMEA), on the shared drive's
-/// noisy copies up to 10% (models/reports/unmet.md, noisy-real.md).
+/// Demotion so cost up to 5% on the car sections of models/reports/unmet.md (1 Hz
+/// RTKLIB) and 10% on the shared drive's noisy copies (noisy-real.md); a few sections
+/// lose up to 1.2%, where a sure car holds a stand whose sense it misread (σ 90°).
 pub const SURE_CAR_SPEED: f32 = 6.0;
 
 /// Degrees off the axis of the heading an `auto` vehicle not known to be a car stood
@@ -134,8 +135,8 @@ pub struct Vehicle {
     /// [`SURE_CAR_SPEED`].
     pub t_sure: f32,
     /// Whether the vehicle has driven above [`SURE_CAR_SPEED`] for `fast_secs`: faster
-    /// than any robot, so a car whatever its stands show; kept through every reset but
-    /// a new history.
+    /// than any robot, so a car whatever its stands show (kept across fix gaps, as the
+    /// rest of the vehicle is).
     pub sure_car: bool,
 }
 
