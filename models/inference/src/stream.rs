@@ -1416,14 +1416,20 @@ mod tests {
     /// axis) on a car that drove 60 s at 8 m/s on 40°, stopped and stood 30 s: the
     /// predictor and history, holding that heading.
     fn parked_car(hz: f64) -> (StreamPredictor, History, Ublox) {
+        parked_on(Ublox::new(hz, 11))
+    }
+
+    /// [`parked_car`] on the receiver `rx`.
+    fn parked_on(mut rx: Ublox) -> (StreamPredictor, History, Ublox) {
         let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
         let mut sp = StreamPredictor::new(model).with_platform(Some(Platform::Car));
         let mut h = sp.history();
-        let mut rx = Ublox::new(hz, 11);
-        for _ in 0..(60.0 * hz) as usize {
+        let dt = rx.dt;
+        let epochs = |secs: f64| (secs / dt).round() as usize;
+        for _ in 0..epochs(60.0) {
             sp.predict(&mut h, &rx.epoch([8.0, 40.0]));
         }
-        for _ in 0..(30.0 * hz) as usize {
+        for _ in 0..epochs(30.0) {
             let p = sp.predict(&mut h, &rx.epoch([0.0, 0.0]));
             assert_eq!(p.status, Status::Held, "{p:?}");
         }
@@ -1711,16 +1717,7 @@ mod tests {
     #[test]
     fn a_stand_that_creeps_off_its_axis_doubts_its_heading() {
         let park = |creep: Option<f32>| {
-            let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
-            let mut sp = StreamPredictor::new(model).with_platform(Some(Platform::Car));
-            let mut h = sp.history();
-            let mut rx = Ublox::noisy(1.0, 5, 0.07, 0.25);
-            for _ in 0..60 {
-                sp.predict(&mut h, &rx.epoch([8.0, 40.0]));
-            }
-            for _ in 0..30 {
-                sp.predict(&mut h, &rx.epoch([0.0, 0.0]));
-            }
+            let (mut sp, mut h, mut rx) = parked_on(Ublox::noisy(1.0, 5, 0.07, 0.25));
             for course in creep.iter().flat_map(|&c| [c; 10]) {
                 sp.predict(&mut h, &rx.epoch([0.45, course]));
             }

@@ -15,8 +15,9 @@
 //!
 //! [`RELEASE_SPEED`]: crate::modes::RELEASE_SPEED
 
+use super::release::off_axis;
 use super::state::{Step, StepState};
-use crate::head::{wrap_rad, MAX_STD_DEG};
+use crate::head::MAX_STD_DEG;
 
 /// Seconds of the exponential average of a stand's velocity: a manoeuvre's leg lasts
 /// several seconds, the receiver noise's correlation about two.
@@ -85,7 +86,6 @@ pub fn stand_doubt(st: &mut StepState, step: &Step, dt: f32) -> f32 {
     if !st.stand_axis.is_finite() {
         return 0.0;
     }
-    let off = wrap_rad(st.stand_axis - st.psi).abs();
-    let off = off.min(std::f32::consts::PI - off);
+    let off = off_axis(st.stand_axis, st.psi);
     (STAND_DOUBT_SIGMA_K * off.to_degrees()).min(MAX_STD_DEG)
 }
