@@ -1905,6 +1905,12 @@ mod tests {
     /// six times that noise. Returns the seconds of driving answered `Held`, and the
     /// worst error of the stand's answers.
     fn parked_then_off(zeros: bool, backs: bool) -> (f32, f32) {
+        leave_stand(zeros, backs, [0.4, 0.1, 1.0])
+    }
+
+    /// [`parked_then_off`] with the receiver's sAcc, the half-width of its uniform noise
+    /// per axis (m/s) and the speed it drives off at: `[acc, amp, speed]`.
+    fn leave_stand(zeros: bool, backs: bool, [acc, amp, speed]: [f32; 3]) -> (f32, f32) {
         let (mut sp, mut h, mut rng) = temporal(23);
         let head = 70f32;
         let mut t = 0.0;
@@ -1916,14 +1922,14 @@ mod tests {
                 if quiet {
                     0.0
                 } else {
-                    rng.random_range(-0.1f32..0.1)
+                    rng.random_range(-amp..amp)
                 }
             };
             Epoch {
                 t_s: t,
                 v_north: speed * c + n(),
                 v_east: speed * s + n(),
-                speed_acc: 0.4,
+                speed_acc: acc,
             }
         };
         for _ in 0..150 {
@@ -1940,7 +1946,7 @@ mod tests {
         }
         let course = if backs { head + 180.0 } else { head };
         let held = (0..50)
-            .filter(|_| sp.predict(&mut h, &ep(1.0, course, &mut rng)).status == Status::Held)
+            .filter(|_| sp.predict(&mut h, &ep(speed, course, &mut rng)).status == Status::Held)
             .count();
         (held as f32 * 0.2, worst)
     }
@@ -1969,6 +1975,24 @@ mod tests {
     fn a_static_hold_receivers_sacc_does_not_hold_a_car_driving_off() {
         for backs in [false, true] {
             let (held, worst) = parked_then_off(true, backs);
+            assert!(held <= 1.2, "backs {backs}: {held} s of driving held");
+            assert!(
+                worst < 5.0,
+                "backs {backs}: the stand's answers {worst}° off"
+            );
+        }
+    }
+
+    /// A car on a receiver that holds static and reports four times its noise (sAcc
+    /// 1.2 m/s, σ 0.29 m/s per axis in motion) leaves its stand within about a second of
+    /// driving off at 1.5 m/s, forward or backing out: its courses at speed showed the
+    /// noise its zeros hide (`HOLD_SCATTER_K`). By its sAcc such a course carries no
+    /// heading: without the bound the stand's heading was answered `Held` for 8.6 of the
+    /// ten seconds.
+    #[test]
+    fn a_static_hold_receiver_is_measured_by_its_courses_at_speed() {
+        for backs in [false, true] {
+            let (held, worst) = leave_stand(true, backs, [1.2, 0.5, 1.5]);
             assert!(held <= 1.2, "backs {backs}: {held} s of driving held");
             assert!(
                 worst < 5.0,

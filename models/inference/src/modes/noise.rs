@@ -77,10 +77,41 @@ pub(super) fn platform_sigma_v(mp: &ModeParams, acc: f32) -> f32 {
     }
 }
 
+/// Times its course scatter at speed ([`Vehicle::scatter`]) that bounds the σ_v by which
+/// a released car whose receiver holds static measures its slow courses.
+///
+/// Such a receiver reads exactly zero at rest, so it never shows its noise there and
+/// the rest-noise bound on a pessimistic sAcc ([`ModeParams::trusted_acc`]) cannot
+/// apply; its courses at speed show it instead. Taken at its word, a u-blox with its
+/// static hold on reporting three times its sAcc (1.2 m/s against 0.4 m/s of noise)
+/// put a car driving off at 1.5 m/s under the measurement's cap: its answers were the
+/// stand's heading, `Held`, for over 3 s of steady driving (the u-blox-hold sAcc × 3
+/// car sections of `models/reports/unmet.md`). The scatter is measured at 3 m/s and
+/// faster over 30 s; 1.5 times it leaves room for the noisier sky of slow driving: at
+/// once the scatter itself, 1 Hz drives (whose scatter rests on few courses) lost at
+/// 2–5 m/s.
+///
+/// [`Vehicle::scatter`]: crate::modes::Vehicle::scatter
+/// [`ModeParams::trusted_acc`]: crate::modes::ModeParams::trusted_acc
+pub const HOLD_SCATTER_K: f32 = 1.5;
+
+/// The velocity noise (m/s) a car's receiver that holds static has shown in its courses
+/// at speed ([`HOLD_SCATTER_K`] times its scatter, at least `sigma_floor`); infinite for
+/// any other receiver or vehicle, or before the scatter is measured.
+#[inline]
+fn shown_noise(mp: &ModeParams, v: &Vehicle) -> f32 {
+    if v.car && v.holds_static() && v.scatter.is_finite() {
+        (HOLD_SCATTER_K * v.scatter.sqrt()).max(mp.sigma_floor)
+    } else {
+        f32::INFINITY
+    }
+}
+
 /// This epoch's velocity noise σ_v, noise-corrected speed, course σ (radians) and
 /// whether it moves. Released ([`StepState::released`]), the motion is real even when
 /// the noise estimate (inflated by slow driving) calls it noise: it is then measured as
-/// a platform would measure it, by the receiver's own accuracy. (The held heading is
+/// a platform would measure it, by the receiver's own accuracy (for a car whose receiver
+/// holds static, at most the noise its courses at speed show, [`HOLD_SCATTER_K`]). (The held heading is
 /// not forgotten: cars that turn as they pull away are released off its axis too, and
 /// lost more than they gained.)
 #[inline]
@@ -94,7 +125,7 @@ pub(super) fn measured(
     let sig = sigma_v(mp, &st.vehicle, acc);
     let (shat, r) = measurement(speed, sig);
     if released && r >= mp.moving_r {
-        let sig = platform_sigma_v(mp, acc);
+        let sig = platform_sigma_v(mp, acc).min(shown_noise(mp, &st.vehicle));
         let (shat, r) = measurement(speed, sig);
         return (sig, shat, r, true);
     }
