@@ -2000,4 +2000,38 @@ mod tests {
             );
         }
     }
+
+    /// A car whose receiver reports twenty times the noise it shows at rest (sAcc
+    /// 1.2 m/s, σ 0.06 m/s per axis) leaves its stand at 1.5 m/s 50° off the heading it
+    /// held (the stand's heading was wrong): once released, its answer follows the
+    /// course, measured by the noise the receiver has shown. By its sAcc that course
+    /// carried no heading: the answer stayed on the stand's, 50° off, as `Ok` at σ 5°.
+    #[test]
+    fn a_released_car_is_measured_by_the_noise_its_receiver_shows() {
+        let (mut sp, mut h, mut rng) = temporal(29);
+        let mut t = 0.0;
+        let mut ep = |speed: f32, course: f32, rng: &mut rand_chacha::ChaCha8Rng| {
+            t += 0.2;
+            let (s, c) = course.to_radians().sin_cos();
+            Epoch {
+                t_s: t,
+                v_north: speed * c + rng.random_range(-0.1f32..0.1),
+                v_east: speed * s + rng.random_range(-0.1f32..0.1),
+                speed_acc: 1.2,
+            }
+        };
+        for k in 0..175 {
+            let speed = 8.0 * (1.0 - (k as f32 - 150.0).max(0.0) / 25.0);
+            sp.predict(&mut h, &ep(speed, 70.0, &mut rng));
+        }
+        for _ in 0..300 {
+            sp.predict(&mut h, &ep(0.0, 70.0, &mut rng));
+        }
+        let off: Vec<Prediction> = (0..50)
+            .map(|_| sp.predict(&mut h, &ep(1.5, 120.0, &mut rng)))
+            .collect();
+        let last = off.last().expect("answers");
+        let err = crate::head::wrap_rad((last.heading_deg - 120.0).to_radians()).to_degrees();
+        assert!(err.abs() < 10.0, "{err}° off after 10 s: {off:?}");
+    }
 }

@@ -95,12 +95,17 @@ pub(super) fn platform_sigma_v(mp: &ModeParams, acc: f32) -> f32 {
 /// [`ModeParams::trusted_acc`]: crate::modes::ModeParams::trusted_acc
 pub const HOLD_SCATTER_K: f32 = 1.5;
 
-/// The velocity noise (m/s) a car's receiver that holds static has shown in its courses
-/// at speed ([`HOLD_SCATTER_K`] times its scatter, at least `sigma_floor`); infinite for
-/// any other receiver or vehicle, or before the scatter is measured.
+/// The velocity noise (m/s) a car's receiver has shown: at rest (its running estimate,
+/// as [`ModeParams::trusted_acc`] takes it), or for a receiver that holds static in its
+/// courses at speed ([`HOLD_SCATTER_K`] times its scatter); at least `sigma_floor`.
+/// Infinite for other vehicles, and before a static-hold receiver's scatter is measured.
 #[inline]
 fn shown_noise(mp: &ModeParams, v: &Vehicle) -> f32 {
-    if v.car && v.holds_static() && v.scatter.is_finite() {
+    if !v.car {
+        f32::INFINITY
+    } else if !v.holds_static() {
+        mp.rest_noise(v).max(mp.sigma_floor)
+    } else if v.scatter.is_finite() {
         (HOLD_SCATTER_K * v.scatter.sqrt()).max(mp.sigma_floor)
     } else {
         f32::INFINITY
@@ -110,8 +115,10 @@ fn shown_noise(mp: &ModeParams, v: &Vehicle) -> f32 {
 /// This epoch's velocity noise σ_v, noise-corrected speed, course σ (radians) and
 /// whether it moves. Released ([`StepState::released`]), the motion is real even when
 /// the noise estimate (inflated by slow driving) calls it noise: it is then measured as
-/// a platform would measure it, by the receiver's own accuracy (for a car whose receiver
-/// holds static, at most the noise its courses at speed show, [`HOLD_SCATTER_K`]). (The held heading is
+/// a platform would measure it, by the receiver's own accuracy, and a car's by at most
+/// the noise its receiver has shown (`shown_noise`). By a pessimistic sAcc (three times
+/// the noise) a released car's slow course carried no heading: one that left an unsure
+/// stand at 1.7 m/s kept answering the stand's heading, 78° off, as `Ok`. (The held heading is
 /// not forgotten: cars that turn as they pull away are released off its axis too, and
 /// lost more than they gained.)
 #[inline]
