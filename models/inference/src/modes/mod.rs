@@ -107,8 +107,8 @@ pub use scatter::{
     SCATTER_TAU_S,
 };
 pub use sigma::{
-    clean, SigmaMap, SigmaMaps, Smoothing, CLEAN_NOISE_RATIO, LAG_NONE_S, LAG_YAW_DEADBAND_DEG,
-    PLATFORM_TURN_SHARE, PLATFORM_TURN_SPEED, SIGMA_KNOTS, TURN_SPEED,
+    clean, SigmaMap, SigmaMaps, Smoothing, CAR_BEYOND_K, CLEAN_NOISE_RATIO, LAG_NONE_S,
+    LAG_YAW_DEADBAND_DEG, PLATFORM_TURN_SHARE, PLATFORM_TURN_SPEED, SIGMA_KNOTS, TURN_SPEED,
 };
 pub use start::START_S;
 pub use state::{HeldHeading, MotionRun, Step, StepState};
