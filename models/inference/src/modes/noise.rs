@@ -87,8 +87,8 @@ pub(super) fn platform_sigma_v(mp: &ModeParams, acc: f32) -> f32 {
 /// put a car driving off at 1.5 m/s under the measurement's cap: its answers were the
 /// stand's heading, `Held`, for over 3 s of steady driving (the u-blox-hold sAcc × 3
 /// car sections of `models/reports/unmet.md`). The scatter is measured at 3 m/s and
-/// faster over 30 s; 1.5 times it leaves room for the noisier sky of slow driving: at
-/// once the scatter itself, 1 Hz drives (whose scatter rests on few courses) lost at
+/// faster over 30 s; 1.5 times it leaves room for the noisier sky of slow driving: by
+/// the scatter itself, 1 Hz drives (whose scatter rests on few courses) lost at
 /// 2–5 m/s.
 ///
 /// [`Vehicle::scatter`]: crate::modes::Vehicle::scatter
@@ -116,11 +116,11 @@ fn shown_noise(mp: &ModeParams, v: &Vehicle) -> f32 {
 /// whether it moves. Released ([`StepState::released`]), the motion is real even when
 /// the noise estimate (inflated by slow driving) calls it noise: it is then measured as
 /// a platform would measure it, by the receiver's own accuracy, and a car's by at most
-/// the noise its receiver has shown (`shown_noise`). By a pessimistic sAcc (three times
-/// the noise) a released car's slow course carried no heading: one that left an unsure
-/// stand at 1.7 m/s kept answering the stand's heading, 78° off, as `Ok`. (The held heading is
-/// not forgotten: cars that turn as they pull away are released off its axis too, and
-/// lost more than they gained.)
+/// the noise its receiver has shown (`shown_noise`). By a pessimistic sAcc (three
+/// times the noise) a released car's slow course carried no heading: one that left an
+/// unsure stand at 1.7 m/s kept answering the stand's heading, 78° off, as `Ok`. (The
+/// held heading is not forgotten: cars that turn as they pull away are released off its
+/// axis too, and lost more than they gained.)
 #[inline]
 pub(super) fn measured(
     mp: &ModeParams,

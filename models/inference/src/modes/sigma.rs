@@ -132,7 +132,7 @@ pub struct SigmaMaps {
 /// (`models/reports/noisy-real.md`) they were answered at σ 5°; as the map stood, the
 /// braking before a stop was outside 2σ and the stop's heading, averaged from those
 /// answers as if sure, too. From the last knot itself (1), the held-out cars and the
-/// shared drive went over 76% within 1σ; from 1.5 times it, they do not move.
+/// shared drive went over 76% within 1σ; from 1.5 times it, they stay within 76%.
 pub const CAR_BEYOND_K: f32 = 1.5;
 
 /// A receiver is clean when the noise the filter measured at rest is under this share
