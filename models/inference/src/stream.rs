@@ -1898,18 +1898,26 @@ mod tests {
         assert!(cover >= 0.9, "covered {cover}");
     }
 
-    /// A 5 Hz car parked for a minute, then driving along its axis (`backs`: backing
-    /// out, its course a half turn off its heading) at 1 m/s. `zeros`: its receiver holds
-    /// static (0.000 at rest, its noise only while it moves); else it shows its noise,
-    /// σ 0.06 m/s per axis, at rest too. Either way it reports an sAcc of 0.4 m/s, over
-    /// six times that noise. Returns the seconds of driving answered `Held`, and the
-    /// worst error of the stand's answers.
-    fn parked_then_off(zeros: bool, backs: bool) -> (f32, f32) {
-        leave_stand(zeros, backs, [0.4, 0.1, 1.0])
+    /// Asserts that [`leave_stand`] on receiver `[acc, amp, speed]` answers at most
+    /// 1.2 s of the drive off `Held`, forward and backing out, and that the stand's
+    /// answers stayed within 5° of its heading.
+    fn leaves_its_stand(zeros: bool, rx: [f32; 3]) {
+        for backs in [false, true] {
+            let (held, worst) = leave_stand(zeros, backs, rx);
+            assert!(held <= 1.2, "backs {backs}: {held} s of driving held");
+            assert!(
+                worst < 5.0,
+                "backs {backs}: the stand's answers {worst}° off"
+            );
+        }
     }
 
-    /// [`parked_then_off`] with the receiver's sAcc, the half-width of its uniform noise
-    /// per axis (m/s) and the speed it drives off at: `[acc, amp, speed]`.
+    /// A 5 Hz car parked for a minute, then driving along its axis (`backs`: backing
+    /// out, its course a half turn off its heading) at `speed`, on a receiver reporting
+    /// sAcc `acc` with uniform noise of ±`amp` m/s per axis. `zeros`: the receiver holds
+    /// static (0.000 at rest, its noise only while it moves); else it shows its noise at
+    /// rest too. Returns the seconds of driving answered `Held`, and the worst error of
+    /// the stand's answers.
     fn leave_stand(zeros: bool, backs: bool, [acc, amp, speed]: [f32; 3]) -> (f32, f32) {
         let (mut sp, mut h, mut rng) = temporal(23);
         let head = 70f32;
@@ -1952,20 +1960,14 @@ mod tests {
     }
 
     /// A car whose receiver reports several times the noise it shows (as many u-blox
-    /// receivers do) keeps its stand through that noise and leaves it within about a
-    /// second of driving off at 1 m/s, forward or backing out: the `3·sAcc` bars of the
-    /// release rule and of `Held` go by the noise the receiver has shown at rest, not
-    /// by its word (with the reported 0.4 m/s both stood at 1.2 m/s).
+    /// receivers do: sAcc 0.4 m/s, σ 0.06 m/s per axis) keeps its stand through that
+    /// noise and leaves it within about a second of driving off at 1 m/s, forward or
+    /// backing out: the `3·sAcc` bars of the release rule and of `Held` go by the noise
+    /// the receiver has shown at rest, not by its word (with the reported 0.4 m/s both
+    /// stood at 1.2 m/s).
     #[test]
     fn a_pessimistic_sacc_does_not_hold_a_car_driving_off() {
-        for backs in [false, true] {
-            let (held, worst) = parked_then_off(false, backs);
-            assert!(held <= 1.2, "backs {backs}: {held} s of driving held");
-            assert!(
-                worst < 5.0,
-                "backs {backs}: the stand's answers {worst}° off"
-            );
-        }
+        leaves_its_stand(false, [0.4, 0.1, 1.0]);
     }
 
     /// The same car on a receiver that holds static: at rest it reads exactly zero, so
@@ -1973,14 +1975,7 @@ mod tests {
     /// release rule's own bar.
     #[test]
     fn a_static_hold_receivers_sacc_does_not_hold_a_car_driving_off() {
-        for backs in [false, true] {
-            let (held, worst) = parked_then_off(true, backs);
-            assert!(held <= 1.2, "backs {backs}: {held} s of driving held");
-            assert!(
-                worst < 5.0,
-                "backs {backs}: the stand's answers {worst}° off"
-            );
-        }
+        leaves_its_stand(true, [0.4, 0.1, 1.0]);
     }
 
     /// A car on a receiver that holds static and reports four times its noise (sAcc
@@ -1991,47 +1986,23 @@ mod tests {
     /// ten seconds.
     #[test]
     fn a_static_hold_receiver_is_measured_by_its_courses_at_speed() {
-        for backs in [false, true] {
-            let (held, worst) = leave_stand(true, backs, [1.2, 0.5, 1.5]);
-            assert!(held <= 1.2, "backs {backs}: {held} s of driving held");
-            assert!(
-                worst < 5.0,
-                "backs {backs}: the stand's answers {worst}° off"
-            );
-        }
+        leaves_its_stand(true, [1.2, 0.5, 1.5]);
     }
 
     /// A car whose receiver reports twenty times the noise it shows at rest (sAcc
-    /// 1.2 m/s, σ 0.06 m/s per axis) leaves its stand at 1.5 m/s 50° off the heading it
-    /// held (the stand's heading was wrong): once released, its answer follows the
-    /// course, measured by the noise the receiver has shown. By its sAcc that course
-    /// carried no heading: the answer stayed on the stand's, 50° off, as `Ok` at σ 5°.
+    /// 1.2 m/s, σ 0.06 m/s per axis), parked as [`parked_car`], leaves its stand at
+    /// 1.5 m/s 50° off the heading it held (the stand's heading was wrong): once
+    /// released, its answer follows the course, measured by the noise the receiver has
+    /// shown. By its sAcc that course carried no heading: the answer stayed on the
+    /// stand's, 50° off, as `Ok` at σ 5°.
     #[test]
     fn a_released_car_is_measured_by_the_noise_its_receiver_shows() {
-        let (mut sp, mut h, mut rng) = temporal(29);
-        let mut t = 0.0;
-        let mut ep = |speed: f32, course: f32, rng: &mut rand_chacha::ChaCha8Rng| {
-            t += 0.2;
-            let (s, c) = course.to_radians().sin_cos();
-            Epoch {
-                t_s: t,
-                v_north: speed * c + rng.random_range(-0.1f32..0.1),
-                v_east: speed * s + rng.random_range(-0.1f32..0.1),
-                speed_acc: 1.2,
-            }
-        };
-        for k in 0..175 {
-            let speed = 8.0 * (1.0 - (k as f32 - 150.0).max(0.0) / 25.0);
-            sp.predict(&mut h, &ep(speed, 70.0, &mut rng));
-        }
-        for _ in 0..300 {
-            sp.predict(&mut h, &ep(0.0, 70.0, &mut rng));
-        }
+        let (mut sp, mut h, mut rx) = parked_on(Ublox::noisy(5.0, 29, 1.2, 0.1));
         let off: Vec<Prediction> = (0..50)
-            .map(|_| sp.predict(&mut h, &ep(1.5, 120.0, &mut rng)))
+            .map(|_| sp.predict(&mut h, &rx.epoch([1.5, 90.0])))
             .collect();
         let last = off.last().expect("answers");
-        let err = crate::head::wrap_rad((last.heading_deg - 120.0).to_radians()).to_degrees();
+        let err = crate::head::wrap_rad((last.heading_deg - 90.0).to_radians()).to_degrees();
         assert!(err.abs() < 10.0, "{err}° off after 10 s: {off:?}");
     }
 }
