@@ -92,7 +92,7 @@ pub use doubt::{
     STAND_DOUBT_TAU_S,
 };
 pub(crate) use noise::random_walk_variance;
-pub use noise::HOLD_SCATTER_K;
+pub use noise::{ACC_RATIO_WARMUP, HOLD_SCATTER_K};
 pub use params::{ModeParams, LEVER_M, PESSIMISTIC_SACC_RATIO};
 pub use prepare::{prepare, ESCAPE_NOISE_K, STEER_IN_NOISE_K};
 pub use release::{
@@ -113,8 +113,9 @@ pub use sigma::{
 pub use start::START_S;
 pub use state::{HeldHeading, MotionRun, Step, StepState};
 pub use vehicle::{
-    Platform, Vehicle, FAST_EPOCHS, HOLD_CREEP_SPEED, HOLD_MIN_ZEROS, HOLD_ZEROS_PER_CREEP,
-    SURE_CAR_SPEED, TURN_IN_PLACE_DEG, TURN_RUN_S, TURN_STAND_S, TURN_SURE_DEG,
+    Platform, Vehicle, ACC_RATIO_MIN_EPOCHS, ACC_RATIO_QUANTILE, FAST_EPOCHS, HOLD_CREEP_SPEED,
+    HOLD_MIN_ZEROS, HOLD_ZEROS_PER_CREEP, SURE_CAR_SPEED, TURN_IN_PLACE_DEG, TURN_RUN_S,
+    TURN_STAND_S, TURN_SURE_DEG,
 };
 
 #[cfg(test)]
@@ -994,6 +995,47 @@ mod tests {
             0.05,
             1.0
         ));
+    }
+
+    /// The sAcc scale ([`ModeParams::acc_scale`]) and the noise at rest of a receiver
+    /// with 0.1 m/s of noise per axis and sAcc `acc`, after `cycles` of a 20 s stand
+    /// and a `creep_s` creep at 0.35 m/s, at 5 Hz.
+    fn sacc_scale_after(cycles: usize, creep_s: usize, acc: f32) -> (f32, f32) {
+        use rand::{Rng, SeedableRng};
+        let mp = ModeParams::default();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let normal = rand_distr::Normal::new(0.0f32, 0.1).expect("a valid σ");
+        let mut v = Vehicle::UNKNOWN;
+        let creep = 5 * creep_s;
+        for k in 0..cycles * (100 + creep) {
+            let base = if k % (100 + creep) < 100 { 0.0 } else { 0.35 };
+            let (n, e) = (base + rng.sample(normal), rng.sample(normal));
+            noise::update_noise(&mp, &mut v, n.hypot(e), acc);
+        }
+        (v.acc_scale(), mp.rest_noise(&v))
+    }
+
+    /// The sAcc scale reads a receiver's pessimism at its stands (three times its
+    /// noise: a third; honest: about one). Through a robot's 12 s creeps after each
+    /// stand it reads the pessimist under [`PESSIMISTIC_SACC_RATIO`] still, half as
+    /// inflated as the noise at rest, which more than doubles; before
+    /// [`ACC_RATIO_MIN_EPOCHS`] it is 1.
+    #[test]
+    fn the_sacc_scale_reads_the_stand_through_creeps() {
+        let (x3, _) = sacc_scale_after(3, 0, 0.3);
+        assert!((0.25..0.45).contains(&x3), "sAcc × 3: {x3}");
+        let (honest, _) = sacc_scale_after(3, 0, 0.1);
+        assert!((0.75..1.3).contains(&honest), "honest: {honest}");
+        let (crept, rest) = sacc_scale_after(5, 12, 0.3);
+        assert!(crept * PESSIMISTIC_SACC_RATIO < 1.0, "creeping: {crept}");
+        assert!(rest > 0.2, "the noise at rest through creeps: {rest}");
+        assert!(3.0 * crept < 0.7 * rest / 0.1, "{crept} against {rest}");
+        let mut v = Vehicle::UNKNOWN;
+        let mp = ModeParams::default();
+        for _ in 1..ACC_RATIO_MIN_EPOCHS {
+            noise::update_noise(&mp, &mut v, 0.01, 0.3);
+        }
+        assert_eq!(v.acc_scale(), 1.0);
     }
 
     /// A moving platform does not spin, so at 5 Hz its filter averages successive

@@ -683,8 +683,7 @@ pub fn stationary_course(
     acc: f32,
     dt: f32,
 ) -> bool {
-    let turns = vehicle.platform == Platform::Auto && !vehicle.car && vehicle.turns;
-    if vehicle.platform != Platform::Robot && !turns {
+    if !vehicle.turns_in_place() {
         return false;
     }
     let noise = if !acc.is_finite() {

@@ -52,6 +52,28 @@ pub const TURN_RUN_S: f32 = 3.0;
 /// Largest σ (degrees, the filter's) of a heading a departure is compared with.
 pub const TURN_SURE_DEG: f32 = 20.0;
 
+/// Quantile of slow speeds over their sAcc that [`Vehicle::acc_ratio`] tracks. Low, so
+/// that it reads the receiver at rest through a robot's creeps: under `noise_speed` a
+/// robot creeping at 0.3–0.5 m/s fills many of the slow epochs, and the running 20%
+/// quantile of slow speeds ([`Vehicle::noise`]) rose with every creep, to twice the
+/// noise a stopped u-blox showed (the robots of `models/reports/unmet.md`). A 5%
+/// quantile reads the stands' own speeds while they are over a twentieth of the slow
+/// epochs (the 20% one needs a fifth) and rises a fifth as fast through a creep.
+pub const ACC_RATIO_QUANTILE: f32 = 0.05;
+
+/// Slow epochs with an sAcc that must have fed [`Vehicle::acc_ratio`] before it counts
+/// ([`Vehicle::acc_scale`]): one and a half below its quantile, on average. From
+/// ten, one low speed at a robot's first stand (its first steps are large) took an
+/// honest receiver's sAcc for twice its noise for the whole drive after it.
+pub const ACC_RATIO_MIN_EPOCHS: u32 = 30;
+
+/// The [`ACC_RATIO_QUANTILE`] quantile of a stopped receiver's speed over its per-axis
+/// σ (Rayleigh): the `acc_ratio` of a receiver whose sAcc is its noise.
+#[inline]
+pub(super) fn acc_ratio_factor() -> f32 {
+    (-2.0 * (1.0 - ACC_RATIO_QUANTILE).ln()).sqrt()
+}
+
 /// What carries the receiver: whether the mode filter may take it for a car, and
 /// whether it may turn in place. Set per source; `Auto` decides online.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -138,6 +160,12 @@ pub struct Vehicle {
     /// than any robot, so a car whatever its stands show (kept across fix gaps, as the
     /// rest of the vehicle is).
     pub sure_car: bool,
+    /// Running low quantile ([`ACC_RATIO_QUANTILE`]) of slow speeds over the sAcc
+    /// reported with them (NaN until the first slow epoch with an sAcc): how far under
+    /// its sAcc the receiver's noise at rest lies ([`Vehicle::acc_scale`]).
+    pub acc_ratio: f32,
+    /// Slow epochs with an sAcc that have fed `acc_ratio` (its first steps are larger).
+    pub acc_ratio_n: u32,
 }
 
 impl Vehicle {
@@ -152,7 +180,34 @@ impl Vehicle {
         turns: false,
         t_sure: 0.0,
         sure_car: false,
+        acc_ratio: f32::NAN,
+        acc_ratio_n: 0,
     };
+
+    /// How far under its sAcc the receiver's noise at rest lies: its running low
+    /// quantile of slow speeds over their sAcc (`acc_ratio`) over the one a receiver
+    /// whose sAcc is its noise shows. 1 until [`ACC_RATIO_MIN_EPOCHS`] slow epochs have
+    /// fed it.
+    #[inline]
+    pub fn acc_scale(&self) -> f32 {
+        let scale = self.acc_ratio / acc_ratio_factor();
+        if scale.is_finite() && self.acc_ratio_n >= ACC_RATIO_MIN_EPOCHS {
+            scale
+        } else {
+            1.0
+        }
+    }
+
+    /// Whether the vehicle turns in place: a declared [`Platform::Robot`], or an `auto`
+    /// one not known to be a car that has shown it does ([`Vehicle::turns`]).
+    #[inline]
+    pub fn turns_in_place(&self) -> bool {
+        match self.platform {
+            Platform::Robot => true,
+            Platform::Auto => !self.car && self.turns,
+            Platform::Car => false,
+        }
+    }
 
     /// Record what one epoch's speed says about a static hold (a speed of exactly zero
     /// is a velocity of exactly zero).
