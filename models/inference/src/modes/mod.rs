@@ -997,7 +997,7 @@ mod tests {
         ));
     }
 
-    /// The sAcc scale ([`ModeParams::acc_scale`]) and the noise at rest of a receiver
+    /// The sAcc scale ([`Vehicle::acc_scale`]) and the noise at rest of a receiver
     /// with 0.1 m/s of noise per axis and sAcc `acc`, after `cycles` of a 20 s stand
     /// and a `creep_s` creep at 0.35 m/s, at 5 Hz.
     fn sacc_scale_after(cycles: usize, creep_s: usize, acc: f32) -> (f32, f32) {
