@@ -51,9 +51,7 @@ pub(super) fn update_noise(mp: &ModeParams, v: &mut Vehicle, speed: f32, acc: f3
         return;
     }
     if speed < mp.noise_speed {
-        let below = if speed < v.noise { 1.0 } else { 0.0 };
-        let tau = mp.noise_quantile;
-        v.noise *= (mp.noise_rate * (tau - below) / tau.max(1.0 - tau)).exp();
+        v.noise = quantile_step(v.noise, speed, mp.noise_quantile, mp.noise_rate);
         if acc.is_finite() && acc > 0.0 {
             update_acc_ratio(mp, v, speed / acc);
         }
@@ -77,9 +75,16 @@ fn update_acc_ratio(mp: &ModeParams, v: &mut Vehicle, x: f32) {
     let warm = 0.5 * ACC_RATIO_WARMUP / (v.acc_ratio_n as f32 + ACC_RATIO_WARMUP);
     let step = mp.noise_rate.max(warm);
     v.acc_ratio_n = v.acc_ratio_n.saturating_add(1);
-    let tau = ACC_RATIO_QUANTILE;
-    let below = if x < v.acc_ratio { 1.0 } else { 0.0 };
-    v.acc_ratio *= (step * (tau - below) / tau.max(1.0 - tau)).exp();
+    v.acc_ratio = quantile_step(v.acc_ratio, x, ACC_RATIO_QUANTILE, step);
+}
+
+/// One step of a running `tau` quantile `q` (log units, `step` per sample) towards
+/// sample `x`: down by `step` (scaled) when `x` is under it, up otherwise, so that it
+/// settles where a share `tau` of the samples lies below.
+#[inline]
+fn quantile_step(q: f32, x: f32, tau: f32, step: f32) -> f32 {
+    let below = if x < q { 1.0 } else { 0.0 };
+    q * (step * (tau - below) / tau.max(1.0 - tau)).exp()
 }
 
 /// The velocity noise σ (m/s) of this epoch.

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::vehicle::{Platform, Vehicle};
+use super::vehicle::{rayleigh_quantile, Platform, Vehicle};
 
 /// A car's lever arm when nothing else is known, m ([`ModeParams::lever_m`]).
 pub const LEVER_M: f32 = 1.0;
@@ -242,7 +242,7 @@ impl ModeParams {
     /// speed is this times its per-axis σ.
     #[inline]
     pub(super) fn quantile_factor(&self) -> f32 {
-        (-2.0 * (1.0 - self.noise_quantile).ln()).sqrt()
+        rayleigh_quantile(self.noise_quantile)
     }
 
     /// The per-axis velocity σ (m/s) a vehicle's receiver has shown at rest: its

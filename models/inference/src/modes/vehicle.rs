@@ -67,11 +67,18 @@ pub const ACC_RATIO_QUANTILE: f32 = 0.05;
 /// honest receiver's sAcc for twice its noise for the whole drive after it.
 pub const ACC_RATIO_MIN_EPOCHS: u32 = 30;
 
-/// The [`ACC_RATIO_QUANTILE`] quantile of a stopped receiver's speed over its per-axis
-/// σ (Rayleigh): the `acc_ratio` of a receiver whose sAcc is its noise.
+/// The `tau` quantile of a stopped receiver's speed over its per-axis σ (Rayleigh): what
+/// a running low quantile of slow speeds is divided by to read that σ.
+#[inline]
+pub(super) fn rayleigh_quantile(tau: f32) -> f32 {
+    (-2.0 * (1.0 - tau).ln()).sqrt()
+}
+
+/// The `acc_ratio` of a receiver whose sAcc is its noise: the [`ACC_RATIO_QUANTILE`]
+/// Rayleigh quantile.
 #[inline]
 pub(super) fn acc_ratio_factor() -> f32 {
-    (-2.0 * (1.0 - ACC_RATIO_QUANTILE).ln()).sqrt()
+    rayleigh_quantile(ACC_RATIO_QUANTILE)
 }
 
 /// What carries the receiver: whether the mode filter may take it for a car, and
