@@ -735,7 +735,7 @@ mod tests {
         let mut held = 0;
         for e in drive(60) {
             let (pa, pb) = (a.predict(&mut ha, &e), b.predict(&mut hb, &e));
-            let d = (pb.heading_deg - pa.heading_deg + 540.0).rem_euclid(360.0) - 180.0;
+            let d = off_deg(pb.heading_deg, pa.heading_deg);
             assert!((d - 2.5).abs() < 1e-3, "{pa:?} {pb:?}");
             assert_eq!((pa.std_deg, pa.status), (pb.std_deg, pb.status));
             assert_eq!(ha.state().psi, hb.state().psi);
@@ -1366,7 +1366,7 @@ mod tests {
             run = if held_fast { run + 0.2 } else { 0.0 };
             longest = longest.max(run);
             if k >= 10 {
-                let err = (p.heading_deg - head_deg + 540.0).rem_euclid(360.0) - 180.0;
+                let err = off_deg(p.heading_deg, head_deg);
                 worst = worst.max(err.abs());
             }
         }
@@ -1410,6 +1410,11 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// `a − b` in degrees, wrapped to [−180°, 180°).
+    fn off_deg(a: f32, b: f32) -> f32 {
+        (a - b + 540.0).rem_euclid(360.0) - 180.0
     }
 
     /// A u-blox-like receiver at `hz` (sAcc 0.05 m/s, uniform noise of ±0.04 m/s per
@@ -1563,7 +1568,7 @@ mod tests {
         let last = &creep[creep.len() / 2..];
         let sum: f32 = last
             .iter()
-            .map(|p| ((p.heading_deg - 130.0 + 540.0).rem_euclid(360.0) - 180.0).abs())
+            .map(|p| off_deg(p.heading_deg, 130.0).abs())
             .sum();
         sum / last.len() as f32
     }
@@ -1590,7 +1595,7 @@ mod tests {
             let (held, answers) = held_fast(&mut sp, &mut h, &mut rx, &drive);
             assert!(held <= 1.0, "course {course}°: held {held} s, {answers:?}");
             let last = answers.last().expect("answers");
-            let err = (last.heading_deg - course + 540.0).rem_euclid(360.0) - 180.0;
+            let err = off_deg(last.heading_deg, course);
             assert!(err.abs() < 5.0, "course {course}°: {last:?}");
         }
     }
@@ -1670,7 +1675,7 @@ mod tests {
             .collect();
         let last = held.last().expect("answers");
         assert_eq!(last.status, Status::Held, "{held:?}");
-        let off = (last.heading_deg - 70.0 + 540.0).rem_euclid(360.0) - 180.0;
+        let off = off_deg(last.heading_deg, 70.0);
         assert!(
             off.abs() < 20.0,
             "holds {}°, {off}° off: {held:?}",
@@ -1860,7 +1865,7 @@ mod tests {
                 };
                 let p = sp.predict(&mut h, &e);
                 let truth = 0.8f32.atan2(0.6).to_degrees();
-                let err = (p.heading_deg - truth + 540.0).rem_euclid(360.0) - 180.0;
+                let err = off_deg(p.heading_deg, truth);
                 within += usize::from(i >= 1000 && err.abs() <= 2.0 * p.std_deg);
             }
             within as f64 / 2000.0
@@ -1900,7 +1905,7 @@ mod tests {
             };
             let p = sp.predict(&mut h, &e);
             if i >= 120 {
-                let err = (p.heading_deg - truth + 540.0).rem_euclid(360.0) - 180.0;
+                let err = off_deg(p.heading_deg, truth);
                 within += usize::from(err.abs() <= 2.0 * p.std_deg);
                 stds.push(p.std_deg);
             }
