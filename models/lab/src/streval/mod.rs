@@ -218,7 +218,15 @@ pub struct Memory {
     pub drives_within_2sigma: Option<[f64; 3]>,
     /// Drives counted in the percentiles.
     pub drives: usize,
+    /// Of those, the drives within both bars ([`DRIVE_BAR_1SIGMA`], [`DRIVE_BAR_2SIGMA`]):
+    /// how often one user's log meets them, which the pooled shares do not say.
+    pub drives_within_bars: usize,
 }
+
+/// The bar on a log's share within 1σ (60–76%): σ neither too wide nor too narrow.
+pub const DRIVE_BAR_1SIGMA: std::ops::RangeInclusive<f64> = 0.60..=0.76;
+/// The bar on a log's share within 2σ (at least 90%): the tails covered.
+pub const DRIVE_BAR_2SIGMA: f64 = 0.90;
 
 /// Fewest epochs a drive needs to count in [`Memory::drives_within_1sigma`].
 pub const MIN_DRIVE_EPOCHS: usize = 100;
@@ -414,6 +422,10 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
     let per_stop = cell(a, truth, &stops);
     let spread =
         |share: fn(&Cell) -> Option<f64>| percentiles(drives.iter().filter_map(share).collect());
+    let within_bars = |c: &Cell| match (c.within_1sigma, c.within_2sigma) {
+        (Some(s1), Some(s2)) => DRIVE_BAR_1SIGMA.contains(&s1) && s2 >= DRIVE_BAR_2SIGMA,
+        _ => false,
+    };
     Some(Memory {
         pairs: pairs.len(),
         correlation: correlation(&pairs),
@@ -424,6 +436,7 @@ fn memory(tracks: &[LogTrack], a: &Answers, truth: &[f32]) -> Option<Memory> {
         drives_within_1sigma: spread(|c| c.within_1sigma),
         drives_within_2sigma: spread(|c| c.within_2sigma),
         drives: drives.len(),
+        drives_within_bars: drives.iter().filter(|c| within_bars(c)).count(),
     })
 }
 
@@ -617,10 +630,16 @@ fn memory_markdown(name: &str, m: &Memory) -> String {
         };
         s += &format!(
             ".\n\nPer drive, {name} ({} drives, 10th / 50th / 90th percentile): {} within 1σ, {} \
-             within 2σ",
+             within 2σ; {} of {} drives within both bars ({:.0}–{:.0}% within 1σ, at least {:.0}% \
+             within 2σ)",
             m.drives,
             pct(a),
-            pct(b)
+            pct(b),
+            m.drives_within_bars,
+            m.drives,
+            100.0 * DRIVE_BAR_1SIGMA.start(),
+            100.0 * DRIVE_BAR_1SIGMA.end(),
+            100.0 * DRIVE_BAR_2SIGMA
         );
     }
     s + ".\n"
@@ -730,5 +749,8 @@ mod tests {
             assert!((got - want).abs() < 1e-9, "{p:?}");
         }
         assert_eq!(m.drives_within_2sigma, Some([1.0; 3]));
+        // Shares 0.6 and 0.7 within 1σ (drives 4 and 3) meet both bars; 0.8 and over do
+        // not, nor 0.5 and under.
+        assert_eq!(m.drives_within_bars, 2);
     }
 }
