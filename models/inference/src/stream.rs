@@ -1600,6 +1600,28 @@ mod tests {
         }
     }
 
+    /// At 10 Hz a parked car leaving 60° off its held heading (so that only the release
+    /// rule lets it go) is answered after [`crate::modes::RELEASE_S_MIN`] of driving,
+    /// not [`crate::modes::RELEASE_S`]; a burst of four equal glitches at rest (the
+    /// longest poor sky makes) is still held, the stand's heading kept.
+    #[test]
+    fn a_10hz_departure_is_released_after_six_tenths_of_a_second() {
+        let (mut sp, mut h, mut rx) = parked_car(10.0);
+        let (held, answers) = held_fast(&mut sp, &mut h, &mut rx, &[[1.5, 100.0]; 20]);
+        assert!(held <= 0.61, "held {held} s: {answers:?}");
+        let last = answers.last().expect("answers");
+        assert!(off_deg(last.heading_deg, 100.0).abs() < 10.0, "{last:?}");
+        let (mut sp, mut h, mut rx) = parked_car(10.0);
+        let before = sp.predict(&mut h, &rx.epoch([0.0, 0.0])).heading_deg;
+        let mut v = vec![[3.0, 130.0]; 4];
+        v.extend([[0.0, 0.0]; 10]);
+        let (_, answers) = held_fast(&mut sp, &mut h, &mut rx, &v);
+        for p in &answers {
+            assert_eq!(p.status, Status::Held, "{answers:?}");
+            assert!(off_deg(p.heading_deg, before).abs() < 1.0, "{answers:?}");
+        }
+    }
+
     /// A glitch burst at rest (three equal epochs at 3 m/s) right before the real
     /// departure (60° off the held heading, so only the release rule lets it go) does
     /// not delay it: the departure's run takes over from the burst's, and the car is

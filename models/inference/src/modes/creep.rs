@@ -1,0 +1,87 @@
+//! A platform's creep at a stand: when a `Stationary` answer gives the epoch's course
+//! rather than the heading the history holds.
+
+use super::params::ModeParams;
+use super::release::{within_deg, RELEASE_COURSE_DEG};
+use super::vehicle::{Platform, Vehicle};
+
+/// Times its receiver's noise (the reported sAcc, else the σ measured at rest) a
+/// declared robot's speed must exceed, this epoch and the one before on a steady
+/// course, for a `Stationary` answer to point along its course
+/// ([`stationary_course`]). At true rest the course is noise and the held
+/// heading the better guess (answering the course at any speed made simulated RTKLIB
+/// robots worse than holding). The steadiness does most of the sorting: a robot
+/// creeping at 0.1–0.4 m/s (a slow arc, a departure a lagging receiver reports late)
+/// keeps its course from one epoch to the next, noise does not. Once the noise itself
+/// rather than twice it, every robot section of `reports/unmet.md` and of 100 drives of
+/// other seeds got better or stayed (by up to 0.5%), the robots' 0.05–0.5 m/s rows
+/// most; under it (half the noise, or none) RTKLIB and NMEA robots lost.
+pub const ROBOT_COURSE_NOISE_K: f32 = 1.0;
+
+/// How far (°/s) a creeping platform's course may turn from one epoch to the next
+/// beyond [`RELEASE_COURSE_DEG`], for a `Stationary` answer to give it
+/// ([`stationary_course`]): robots turn at 20–60°/s, so at 1 Hz two courses of a
+/// real creep in an arc lie further apart than a 5 or 10 Hz receiver's. With the
+/// bare 30°, 1 Hz robots held a stale heading through such creeps; widened by 45°/s
+/// (75° at 1 Hz, 39° at 5 Hz), every 1 Hz robot section of models/reports/unmet.md
+/// and of 100 drives of other seeds got better or stayed (by up to 0.5% with
+/// `--platform robot`), the 5 and 10 Hz sections moved by at most 0.03% either way,
+/// and no car section moved (60°/s gained no more). Noise at rest seldom passes: both
+/// speeds must be over the receiver's noise.
+pub const ROBOT_COURSE_TURN_DEG_S: f32 = 45.0;
+
+/// Whether a `Stationary` answer (no heading known) of `vehicle` gives this epoch's
+/// course (velocity `v`, m/s north and east), with σ [`SENSE_SIGMA_DEG`] (a creep may
+/// be a back-up), rather than the heading the history holds with the uniform σ.
+///
+/// Only for a declared [`Platform::Robot`], or an `auto` vehicle not known to be a
+/// car that has shown it turns in place ([`Vehicle::turns`]): such a platform turns in
+/// place at its stops, so what it holds is stale, while a car's held heading is right
+/// however it creeps or reverses. (Every `auto` vehicle not known to be a car, from
+/// its cold start, made the car sections of models/reports/unmet.md worse: half the
+/// simulated cars back out of their space first, answered a half turn off.)
+///
+/// Only when `v` and the velocity the epoch before used (`prev_v`, `dt` seconds
+/// earlier) are both over [`ROBOT_COURSE_NOISE_K`] times the receiver's noise (below)
+/// and point within [`RELEASE_COURSE_DEG`] plus [`ROBOT_COURSE_TURN_DEG_S`] over `dt`
+/// of each other (at most 85°): a creeping robot's velocity keeps its direction, or
+/// turns it as fast as a robot turns, a noisy receiver at rest before its noise is
+/// measured does not for long, and neither, at 5 and 10 Hz, does the velocity a spin
+/// in place gives an antenna off its axis. Without that steadiness, a cold start on a
+/// noisy NMEA receiver and a robot spinning at 1 Hz were answered sideways. At 1 Hz a
+/// spin slower than 75°/s now passes when its antenna's velocity is over the noise;
+/// the 1 Hz robot sections measured for [`ROBOT_COURSE_TURN_DEG_S`] (robots spinning
+/// at 20–60°/s, antennas up to 0.25 m off the axis) count that cost in.
+///
+/// The receiver's noise: without an sAcc (`acc` NaN), the noise measured at rest. A
+/// declared robot's is the sAcc the receiver has earned ([`ModeParams::trusted_acc`]):
+/// a u-blox reporting three times its sAcc kept robots creeping off a spin at
+/// 0.1–0.5 m/s on their stale heading (the sAcc × 3 robot sections of
+/// models/reports/unmet.md). An `auto` vehicle's is the reported sAcc: it may be a
+/// car whose held heading is right, and by the earned sAcc the recipe's held-out
+/// platforms did 0.3% worse at their stops.
+///
+/// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
+#[inline]
+pub fn stationary_course(
+    mp: &ModeParams,
+    vehicle: &Vehicle,
+    v: [f32; 2],
+    prev_v: [f32; 2],
+    acc: f32,
+    dt: f32,
+) -> bool {
+    if !vehicle.turns_in_place() {
+        return false;
+    }
+    let noise = if !acc.is_finite() {
+        mp.rest_noise(vehicle)
+    } else if vehicle.platform == Platform::Robot {
+        mp.trusted_acc(vehicle, acc)
+    } else {
+        acc
+    };
+    let bar = ROBOT_COURSE_NOISE_K * noise;
+    let turn = (RELEASE_COURSE_DEG + ROBOT_COURSE_TURN_DEG_S * dt.max(0.0)).min(85.0);
+    v[0].hypot(v[1]) > bar && prev_v[0].hypot(prev_v[1]) > bar && within_deg(prev_v, v, turn)
+}
