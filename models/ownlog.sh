@@ -138,9 +138,13 @@ row() {
 # worse than the shipped model), per vehicle.
 awk -F'|' '$2 ~ /^ (robot|car|shared)/ {
     v = ($2 ~ /^ robot/) ? "robots" : "cars"
-    n[v]++; if ($8 + 0 >= 2.0) a[v]++; if ($9 + 0 >= 0.0) s[v]++ }
+    n[v]++; if ($8 + 0 >= 2.0) a[v]++; if ($9 + 0 >= 0.0) s[v]++
+    # Within the σ bars: 60-76% within 1σ and at least 90% within 2σ.
+    split($10, d, "/"); split($11, t, "/")
+    if (d[1] + 0 >= 60 && d[1] + 0 <= 76 && d[2] + 0 >= 90) bd[v]++
+    if (t[1] + 0 >= 60 && t[1] + 0 <= 76 && t[2] + 0 >= 90) bt[v]++ }
   END {
     print ""
-    for (v in n) printf "%s: at least 2%% better than atan2 on %d of %d logs, no worse than the shipped model on %d of %d.\n", v, a[v], n[v], s[v], n[v] }' \
+    for (v in n) printf "%s: at least 2%% better than atan2 on %d of %d logs, no worse than the shipped model on %d of %d; within the σ bars (60-76%% within 1σ, at least 90%% within 2σ) on %d of %d trained, %d of %d shipped.\n", v, a[v], n[v], s[v], n[v], bt[v], n[v], bd[v], n[v] }' \
   "$OUT" | sort -r >>"$OUT"
 echo "wrote $OUT"
