@@ -309,7 +309,7 @@ impl Receiver {
             sigma: log_uniform(rng, p.sigma_min, p.sigma_max),
             // Only some receivers smooth; RTKLIB's epoch-by-epoch Doppler does not.
             lag_s: match kind {
-                ReceiverKind::Rtklib => 0.0,
+                ReceiverKind::Rtklib | ReceiverKind::Snap => 0.0,
                 ReceiverKind::Consumer | ReceiverKind::UbloxHold => {
                     uniform(rng, 0.5, p.lag_max_s.max(0.5))
                 }
@@ -357,7 +357,7 @@ impl Receiver {
                 let cd = q(course.to_degrees(), 0.1).to_radians();
                 (sp * cd.cos(), sp * cd.sin(), f64::NAN)
             }
-            ReceiverKind::Consumer => (mn, me, f64::NAN),
+            ReceiverKind::Consumer | ReceiverKind::Snap => (mn, me, f64::NAN),
         }
     }
 }
@@ -508,8 +508,10 @@ fn observe(
         let speed = vn.hypot(ve);
         // Snaps to zero below its threshold (the track's sAcc factor sets it at
         // 0.3–0.6 m/s), so motion starts with a jump; its course holds while it does.
-        let snapped = matches!(rx.kind, ReceiverKind::Consumer | ReceiverKind::UbloxHold)
-            && speed < 0.3 + 0.375 * (rx.sacc_factor - 0.7);
+        let snapped = matches!(
+            rx.kind,
+            ReceiverKind::Consumer | ReceiverKind::UbloxHold | ReceiverKind::Snap
+        ) && speed < 0.3 + 0.375 * (rx.sacc_factor - 0.7);
         if (speed >= 0.1 && !snapped) || course.is_nan() {
             course = ve.atan2(vn);
         }
@@ -684,6 +686,45 @@ mod tests {
             }
         }
         assert!(held > 1000, "{held} snapped epochs");
+    }
+
+    /// The snap style reads 0.000 at rest as the consumer style does, and at steady
+    /// speed its course is as near the heading as a raw receiver's (no lag trailing the
+    /// turns): a consumer receiver of the same seed trails further.
+    #[test]
+    fn a_snap_receiver_snaps_without_lagging() {
+        let of = |kind: ReceiverKind| {
+            let p = DriveParams {
+                tracks: 4,
+                receivers: vec![kind],
+                rates_hz: vec![5],
+                sigma_min: 0.02,
+                sigma_max: 0.02,
+                ..DriveParams::default().robots()
+            };
+            let (mut zeros, mut err, mut n) = (0, 0.0f64, 0);
+            for t in simulate(&p, 12) {
+                for s in &t.samples {
+                    zeros += usize::from(s.v_north == 0.0 && s.v_east == 0.0);
+                    if s.true_speed > 1.0 && !s.reversing {
+                        let course = f64::from(s.v_east).atan2(f64::from(s.v_north)).to_degrees();
+                        let d = (course - f64::from(s.truth_heading_deg) + 540.0).rem_euclid(360.0)
+                            - 180.0;
+                        err += d.abs();
+                        n += 1;
+                    }
+                }
+                assert!(t.samples.iter().all(|s| s.speed_acc.is_nan()), "no sAcc");
+            }
+            (zeros, err / f64::from(n.max(1)))
+        };
+        let (snap_zeros, snap_err) = of(ReceiverKind::Snap);
+        let (_, consumer_err) = of(ReceiverKind::Consumer);
+        assert!(snap_zeros > 1000, "{snap_zeros} snapped epochs");
+        assert!(
+            snap_err < 0.7 * consumer_err,
+            "snap {snap_err}° against consumer {consumer_err}°"
+        );
     }
 
     /// A u-blox with its static hold on snaps to 0.000 at rest as a consumer receiver

@@ -33,6 +33,11 @@ pub enum ReceiverKind {
     /// (σ times 0.7–1.5), which at rest describes no noise the receiver shows. Held out
     /// of the shipped recipes.
     UbloxHold,
+    /// A receiver that snaps to 0.000 at rest as the consumer style does but passes its
+    /// raw velocity through without a lag, and reports no accuracy: nothing in its
+    /// output tells it from the consumer style, whose lag the model leads. Held out of
+    /// the shipped recipes.
+    Snap,
 }
 
 /// Parameters of [`simulate`](super::simulate).
