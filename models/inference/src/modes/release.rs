@@ -26,8 +26,9 @@ pub const RELEASE_S: f32 = 0.8;
 /// under poor sky, from which [`RELEASE_S_MIN`] of it ends a stand: at 10 Hz
 /// [`RELEASE_S`] is nine epochs, twice a burst, and a burst inside a departure pauses
 /// its clock: by [`RELEASE_S`] alone, simulated 10 Hz cars held a stand's heading for
-/// up to 1.1 s of driving (the `Held` column of models/reports/unmet.md). At 5 Hz five epochs are
-/// [`RELEASE_S`] already; at 1 and 2 Hz [`RELEASE_EPOCHS`] and [`RELEASE_S`] decide.
+/// up to 1.1 s of driving (the `Held` column of models/reports/unmet.md). At 5 Hz five
+/// epochs are [`RELEASE_S`] already; at 1 and 2 Hz [`RELEASE_EPOCHS`] and [`RELEASE_S`]
+/// decide.
 pub const RELEASE_BURST_EPOCHS: u16 = 5;
 
 /// Seconds of plain motion that end a stand once the run has [`RELEASE_BURST_EPOCHS`]

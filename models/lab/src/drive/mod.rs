@@ -576,6 +576,7 @@ pub fn simulate(p: &DriveParams, seed: u64) -> Vec<Track> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::eval::{atan2_heading_deg, wrap_deg};
 
     fn small() -> DriveParams {
         DriveParams {
@@ -628,7 +629,7 @@ mod tests {
             let out = observe(&p, &rx, &truth, &none, &none, &mut rng);
             for s in &out[1..] {
                 let course = s.v_east.atan2(s.v_north).to_degrees();
-                let d = (course - s.truth_heading_deg + 540.0).rem_euclid(360.0) - 180.0;
+                let d = wrap_deg(course - s.truth_heading_deg);
                 assert!(
                     (d - lead as f32).abs() < 0.1,
                     "speed {speed}: course - heading {d}, expected {lead}"
@@ -707,10 +708,8 @@ mod tests {
                 for s in &t.samples {
                     zeros += usize::from(s.v_north == 0.0 && s.v_east == 0.0);
                     if s.true_speed > 1.0 && !s.reversing {
-                        let course = f64::from(s.v_east).atan2(f64::from(s.v_north)).to_degrees();
-                        let d = (course - f64::from(s.truth_heading_deg) + 540.0).rem_euclid(360.0)
-                            - 180.0;
-                        err += d.abs();
+                        let course = atan2_heading_deg(s.v_north, s.v_east);
+                        err += f64::from(wrap_deg(course - s.truth_heading_deg).abs());
                         n += 1;
                     }
                 }
