@@ -1547,14 +1547,14 @@ mod tests {
         }
     }
 
-    /// A declared robot on a u-blox that reports three times its noise as sAcc (0.3 m/s
-    /// for 0.1 m/s per axis) drives on 40°, turns to 130° at a 20 s stand and creeps
-    /// off at 0.25 m/s, under its sAcc: the creep's course is weighed by the sAcc the
-    /// stand showed it has earned. The mean error over the creep's last 5 s (receiver
-    /// seed `seed`).
-    fn robot_creeping_on_a_pessimistic_ublox(seed: u64) -> f32 {
+    /// A robot (declared as `platform`) on a u-blox that reports three times its noise
+    /// as sAcc (0.3 m/s for 0.1 m/s per axis) drives on 40°, turns to 130° at a 20 s
+    /// stand and creeps off at 0.25 m/s, under its sAcc: the creep's course is weighed
+    /// by the sAcc the stand showed it has earned. The mean error over the creep's last
+    /// 5 s (receiver seed `seed`).
+    fn robot_creeping_on_a_pessimistic_ublox(seed: u64, platform: Platform) -> f32 {
         let model = Arc::new(Model::builtin("ghnet-temporal").expect("built in"));
-        let mut sp = StreamPredictor::new(model).with_platform(Some(Platform::Robot));
+        let mut sp = StreamPredictor::new(model).with_platform(Some(platform));
         let mut h = sp.history();
         let mut rx = Ublox::noisy(5.0, seed, 0.3, 0.17);
         let mut feed = |secs: f32, v: [f32; 2]| -> Vec<Prediction> {
@@ -1574,13 +1574,19 @@ mod tests {
     }
 
     /// [`robot_creeping_on_a_pessimistic_ublox`] follows the creep within 25° on
-    /// average on each of four receiver seeds; weighed by the reported sAcc, 30–62° off
-    /// (the heading from before the stand lingered).
+    /// average on each of four receiver seeds, declared a robot or `auto` (not yet seen
+    /// to turn in place: the creep is its first departure off a spin); weighed by the
+    /// reported sAcc, 30–62° off (the heading from before the stand lingered).
     #[test]
     fn a_robots_creep_is_weighed_by_the_sacc_its_stands_earned() {
-        for seed in 21..=24 {
-            let err = robot_creeping_on_a_pessimistic_ublox(seed);
-            assert!(err < 25.0, "seed {seed}: the creep followed {err}° off");
+        for platform in [Platform::Robot, Platform::Auto] {
+            for seed in 21..=24 {
+                let err = robot_creeping_on_a_pessimistic_ublox(seed, platform);
+                assert!(
+                    err < 25.0,
+                    "{platform}, seed {seed}: the creep followed {err}° off"
+                );
+            }
         }
     }
 

@@ -81,7 +81,15 @@ pub fn stationary_course(
     } else {
         acc
     };
-    let bar = ROBOT_COURSE_NOISE_K * noise;
+    steady_creep(v, prev_v, ROBOT_COURSE_NOISE_K * noise, dt)
+}
+
+/// Whether velocity `v` (m/s north and east) and the one `dt` s before it (`prev_v`)
+/// are both over `bar` (m/s) and point within [`RELEASE_COURSE_DEG`] plus
+/// [`ROBOT_COURSE_TURN_DEG_S`] over `dt` of each other (at most 85°): a creep keeps its
+/// direction, or turns it as fast as a robot turns, while noise at rest seldom does.
+#[inline]
+pub(super) fn steady_creep(v: [f32; 2], prev_v: [f32; 2], bar: f32, dt: f32) -> bool {
     let turn = (RELEASE_COURSE_DEG + ROBOT_COURSE_TURN_DEG_S * dt.max(0.0)).min(85.0);
     v[0].hypot(v[1]) > bar && prev_v[0].hypot(prev_v[1]) > bar && within_deg(prev_v, v, turn)
 }

@@ -46,7 +46,7 @@ pub fn prepare(
     step.hold = false;
     update_scatter(st, vn, ve, dt);
     let (sig, shat, r, moving) = measured(mp, st, speed, acc);
-    let r_gain = gain_r(mp, st, speed, acc, r, moving);
+    let r_gain = gain_r(mp, st, [vn, ve], acc, r, (moving, dt));
     let p_walk = walk_variance(mp, st, dt, moving);
     // The gate first: a glitch must neither change the direction nor count as driving.
     step.glitch = glitch(mp, st, vn, ve, speed, sig, dt, moving, p_walk, r);
