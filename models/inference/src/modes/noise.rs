@@ -208,9 +208,9 @@ pub(super) fn gain_r(
 /// sAcc × 3 robots of `models/reports/unmet.md`, `auto` kept the reported sAcc at
 /// every such epoch and answered 11–16% worse than atan2, three times the cost of
 /// `--platform robot`; a robot not yet seen to turn creeps off its first spins too.
-/// Noise at rest is no steady creep until it is correlated over the epochs it spans,
-/// so the steadiness leaves a car's stands alone, and not yet seen to turn, a robot's.
-/// Seen to turn, the stands of a robot with such an sAcc follow their noise's courses
+/// Noise at rest seldom stays over that sAcc on a steady course from one epoch to the
+/// next, so a car's stands keep the reported sAcc nearly always (the car sections of
+/// `models/reports/unmet.md` moved by at most 0.6%). Seen to turn, the stands of a robot with such an sAcc follow their noise's courses
 /// as a declared robot's do: one simulated RTKLIB robot of the held-out platforms
 /// (sAcc 2.6 times its noise at rest) lost 3° at its stops.
 #[inline]
