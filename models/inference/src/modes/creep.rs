@@ -3,7 +3,7 @@
 
 use super::params::ModeParams;
 use super::release::{within_deg, RELEASE_COURSE_DEG};
-use super::vehicle::{Platform, Vehicle};
+use super::vehicle::Vehicle;
 
 /// Times its receiver's noise (the reported sAcc, else the σ measured at rest) a
 /// declared robot's speed must exceed, this epoch and the one before on a steady
@@ -53,15 +53,15 @@ pub const ROBOT_COURSE_TURN_DEG_S: f32 = 45.0;
 /// the 1 Hz robot sections measured for [`ROBOT_COURSE_TURN_DEG_S`] (robots spinning
 /// at 20–60°/s, antennas up to 0.25 m off the axis) count that cost in.
 ///
-/// The receiver's noise: without an sAcc (`acc` NaN), the noise measured at rest. A
-/// declared robot's is the sAcc the receiver has earned ([`ModeParams::trusted_acc`]):
-/// a u-blox reporting three times its sAcc kept robots creeping off a spin at
-/// 0.1–0.5 m/s on their stale heading (the sAcc × 3 robot sections of
-/// models/reports/unmet.md). An `auto` vehicle's is the reported sAcc: it may be a
-/// car whose held heading is right, and by the earned sAcc the recipe's held-out
-/// platforms did 0.3% worse at their stops.
+/// The receiver's noise: without an sAcc (`acc` NaN), the noise measured at rest;
+/// with one, the sAcc the receiver has earned ([`ModeParams::trusted_acc`]): a u-blox
+/// reporting three times its sAcc kept robots creeping off a spin at 0.1–0.5 m/s on
+/// their stale heading (the sAcc × 3 robot sections of models/reports/unmet.md), and
+/// an `auto` robot, once seen to turn in place, as much as a declared one (with the
+/// reported sAcc such sections answered 0.2–0.7% worse).
 ///
 /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
+/// [`Platform::Robot`]: crate::modes::Platform::Robot
 #[inline]
 pub fn stationary_course(
     mp: &ModeParams,
@@ -74,12 +74,10 @@ pub fn stationary_course(
     if !vehicle.turns_in_place() {
         return false;
     }
-    let noise = if !acc.is_finite() {
-        mp.rest_noise(vehicle)
-    } else if vehicle.platform == Platform::Robot {
+    let noise = if acc.is_finite() {
         mp.trusted_acc(vehicle, acc)
     } else {
-        acc
+        mp.rest_noise(vehicle)
     };
     steady_creep(v, prev_v, ROBOT_COURSE_NOISE_K * noise, dt)
 }

@@ -999,6 +999,27 @@ mod tests {
         ));
     }
 
+    /// On a receiver that reports 0.3 m/s as sAcc but has shown 0.1 m/s of noise per
+    /// axis at rest, a steady creep at 0.2 m/s is answered with its course by a
+    /// declared robot and by an `auto` vehicle seen to turn in place alike (by the
+    /// reported sAcc, under its bar), and not by an `auto` vehicle not seen to turn.
+    #[test]
+    fn a_creep_under_a_pessimistic_sacc_is_answered_once_the_robot_turned() {
+        let mp = ModeParams::default();
+        let (before, now) = ([0.2, 0.0], [0.2, 0.01]);
+        for (platform, turns, answered) in [
+            (Platform::Robot, false, true),
+            (Platform::Auto, true, true),
+            (Platform::Auto, false, false),
+        ] {
+            let mut vehicle = StepState::fresh(platform).vehicle;
+            vehicle.turns = turns;
+            vehicle.noise = 0.1 * mp.quantile_factor();
+            let got = stationary_course(&mp, &vehicle, now, before, 0.3, 0.2);
+            assert_eq!(got, answered, "{platform}, turns {turns}");
+        }
+    }
+
     /// The sAcc scale ([`Vehicle::acc_scale`]) and the noise at rest of a receiver
     /// with 0.1 m/s of noise per axis and sAcc `acc`, after `cycles` of a 20 s stand
     /// and a `creep_s` creep at 0.35 m/s, at 5 Hz.
