@@ -5,12 +5,12 @@ use super::params::ModeParams;
 use super::release::{within_deg, RELEASE_COURSE_DEG};
 use super::vehicle::Vehicle;
 
-/// Times its receiver's noise (the reported sAcc, else the σ measured at rest) a
-/// declared robot's speed must exceed, this epoch and the one before on a steady
-/// course, for a `Stationary` answer to point along its course
-/// ([`stationary_course`]). At true rest the course is noise and the held
-/// heading the better guess (answering the course at any speed made simulated RTKLIB
-/// robots worse than holding). The steadiness does most of the sorting: a robot
+/// Times its receiver's noise (the sAcc it has earned, else the σ measured at rest) a
+/// robot's speed (declared, or `auto` seen to turn in place) must exceed, this epoch
+/// and the one before on a steady course, for a `Stationary` answer to point along its
+/// course ([`stationary_course`]). At true rest the course is noise and the held heading
+/// the better guess (answering the course at any speed made simulated RTKLIB robots
+/// worse than holding). The steadiness does most of the sorting: a robot
 /// creeping at 0.1–0.4 m/s (a slow arc, a departure a lagging receiver reports late)
 /// keeps its course from one epoch to the next, noise does not. Once the noise itself
 /// rather than twice it, every robot section of `reports/unmet.md` and of 100 drives of
