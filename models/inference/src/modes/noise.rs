@@ -210,9 +210,10 @@ pub(super) fn gain_r(
 /// `--platform robot`; a robot not yet seen to turn creeps off its first spins too.
 /// Noise at rest seldom stays over that sAcc on a steady course from one epoch to the
 /// next, so a car's stands keep the reported sAcc nearly always (the car sections of
-/// `models/reports/unmet.md` moved by at most 0.6%). Seen to turn, the stands of a robot with such an sAcc follow their noise's courses
-/// as a declared robot's do: one simulated RTKLIB robot of the held-out platforms
-/// (sAcc 2.6 times its noise at rest) lost 3° at its stops.
+/// `models/reports/unmet.md` moved by at most 0.6%). Seen to turn, the stands of a
+/// robot with such an sAcc follow their noise's courses as a declared robot's do: one
+/// simulated RTKLIB robot of the held-out platforms (sAcc 2.6 times its noise at rest)
+/// lost 3° at its stops.
 #[inline]
 fn weighs_rest_by_gain(mp: &ModeParams, st: &StepState, v: [f32; 2], acc: f32, dt: f32) -> bool {
     let vehicle = &st.vehicle;
