@@ -2,7 +2,7 @@
 # Own-log training measured the way a user meets it: the first half of a log trains
 # (`ghnet train --data`, which itself keeps the last 20% of that half to judge its fit),
 # the second half tests. Logs: 20-minute single-track 5 Hz drives of robots with
-# consumer, NMEA and u-blox receivers and of cars with u-blox, RTKLIB and consumer
+# consumer, NMEA, u-blox and snap receivers and of cars with u-blox, RTKLIB and consumer
 # receivers, two seeds each, a 40-minute robot and car with RTKLIB (long enough to
 # fine-tune the network), four more 40-minute robots each with u-blox and RTKLIB
 # receivers (no seed is a recipe's or models/unmet.sh's), and the shared real drive
@@ -91,7 +91,7 @@ row() {
   echo "| log | epochs | MAE atan2 | MAE kf | MAE shipped | MAE trained | vs atan2 [%] | vs shipped [%] | shipped ≤1σ / ≤2σ [%] | trained ≤1σ / ≤2σ [%] | platform | fitted | train half [s] | train whole [s] |"
   echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---:|---:|"
   seed=7100
-  for style in consumer nmea ublox; do
+  for style in consumer nmea ublox snap; do
     for _ in 1 2; do
       seed=$((seed + 1))
       # shellcheck disable=SC2086

@@ -30,7 +30,7 @@ const STEPS: [f32; 4] = [0.5, 0.7, 1.4, 2.0];
 /// `acc_lag_s`, set alike: a lag fitted on the log replaces the ones assumed from the
 /// receiver's static hold, missing accuracy or raw Doppler velocity). A lag starts at 0,
 /// where multiplicative steps cannot move it, so it has a grid of its own.
-const LAGS: [f32; 6] = [0.0, 0.25, 0.5, 1.0, 1.5, 2.0];
+pub const LAGS: [f32; 6] = [0.0, 0.25, 0.5, 1.0, 1.5, 2.0];
 
 /// Rounds of the coordinate search.
 const ROUNDS: usize = 2;
@@ -316,6 +316,83 @@ fn fit_boresight(model: &Model, tracks: &[LogTrack], best: &mut ModeParams, best
     }
 }
 
+/// Largest standard error (s) of a measured trail ([`measured_trail`]) that picks a lag of
+/// [`LAGS`]: a fifth of the grid's finest step, so that the nearest lag is the trail's.
+pub const TRAIL_MAX_SE_S: f32 = 0.05;
+
+/// How far a log's courses trail its truth in turns, measured on the truth
+/// ([`measured_trail`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Trail {
+    /// Seconds of yaw rate the course trails the heading by (negative: leads).
+    pub s: f32,
+    /// Its standard error (s), counting one independent sample per second.
+    pub se_s: f32,
+    /// Epochs that measured it.
+    pub epochs: usize,
+}
+
+impl Trail {
+    /// The lag of [`LAGS`] nearest the trail: the lead a receiver whose courses trail
+    /// this much calls for, as finely as the fit's grid can say.
+    pub fn nearest_lag(&self) -> f32 {
+        LAGS.into_iter()
+            .min_by(|a, b| (a - self.s).abs().total_cmp(&(b - self.s).abs()))
+            .unwrap_or(0.0)
+    }
+}
+
+/// How far the courses of `tracks` trail their truth in turns: the least-squares slope
+/// of the truth minus the course against the truth's yaw rate, over the epochs that
+/// could measure a boresight ([`BORESIGHT_SPEED`], at least ten times their sAcc,
+/// within [`BORESIGHT_MAX_DEG`]) at any yaw rate. A receiver whose velocity is its
+/// navigation filter's output reports the course of a moment ago, `ω·τ` behind a
+/// turn; raw Doppler velocity does not trail (a robot's antenna off its axis moves
+/// the slope by a tenth of a second or so at its speeds). `None` with fewer than
+/// [`BORESIGHT_EPOCHS`] such epochs or no turning among them. Measured, not searched:
+/// every turn of the log says it, where the MAE a lag gains sits in the few stretches
+/// that turn.
+pub fn measured_trail(tracks: &[LogTrack]) -> Option<Trail> {
+    let (mut pts, mut secs) = (Vec::new(), 0.0f64);
+    for t in tracks {
+        for i in 1..t.len().saturating_sub(1) {
+            let (vn, ve, acc) = (t.v_north[i], t.v_east[i], t.speed_acc[i]);
+            let speed = vn.hypot(ve);
+            let dt = t.t_s[i + 1] - t.t_s[i - 1];
+            if speed < BORESIGHT_SPEED || acc * 10.0 > speed || !(dt > 0.0 && dt <= 2.5) {
+                continue;
+            }
+            let e = wrap_deg(t.truth_deg[i] - ve.atan2(vn).to_degrees());
+            let yaw = wrap_deg(t.truth_deg[i + 1] - t.truth_deg[i - 1]) / dt as f32;
+            if e.abs() <= BORESIGHT_MAX_DEG && yaw.is_finite() {
+                pts.push((f64::from(yaw), f64::from(e)));
+                secs += (0.5 * dt).min(1.0);
+            }
+        }
+    }
+    let n = pts.len();
+    if n < BORESIGHT_EPOCHS {
+        return None;
+    }
+    let mean = |f: fn(&(f64, f64)) -> f64| pts.iter().map(f).sum::<f64>() / n as f64;
+    let (mx, my) = (mean(|p| p.0), mean(|p| p.1));
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    if sxx <= 0.0 {
+        return None;
+    }
+    let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / sxx;
+    let res: f64 = pts
+        .iter()
+        .map(|p| (p.1 - my - slope * (p.0 - mx)).powi(2))
+        .sum();
+    let se = (res / (n as f64 - 2.0).max(1.0) / sxx).sqrt() * (n as f64 / secs.max(1.0)).sqrt();
+    Some(Trail {
+        s: slope as f32,
+        se_s: se as f32,
+        epochs: n,
+    })
+}
+
 /// Try every lag of [`LAGS`] on `best`; true when one gained [`MIN_GAIN`]
 /// ([`Scored::gain_over`]).
 fn fit_lag(model: &Model, tracks: &[LogTrack], best: &mut ModeParams, best_s: &mut Scored) -> bool {
@@ -340,7 +417,7 @@ fn fit_lag(model: &Model, tracks: &[LogTrack], best: &mut ModeParams, best_s: &m
 }
 
 /// `name: old → new` for every constant that differs.
-fn changes(a: &ModeParams, b: &ModeParams) -> Vec<String> {
+pub(super) fn changes(a: &ModeParams, b: &ModeParams) -> Vec<String> {
     let mut out = Vec::new();
     if a.platform != b.platform {
         out.push(format!("platform: {} → {}", a.platform, b.platform));
@@ -389,6 +466,20 @@ pub(crate) fn lagging_robot_on_a_no_lag_model() -> (Model, Vec<LogTrack>) {
     (with_modes(&builtin, none), crate::logs::simulated(&p, 11))
 }
 
+/// Test material: a 20-minute 5 Hz robot log (one track) with `receiver`, seeded `seed`.
+#[cfg(test)]
+pub(crate) fn robot_day(receiver: crate::drive::ReceiverKind, seed: u64) -> Vec<LogTrack> {
+    let p = crate::drive::DriveParams {
+        tracks: 1,
+        track_min_s: 1200.0,
+        track_max_s: 1200.0,
+        receivers: vec![receiver],
+        rates_hz: vec![5],
+        ..crate::drive::DriveParams::default().robots()
+    };
+    crate::logs::simulated(&p, seed)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -406,6 +497,23 @@ mod tests {
             ..crate::drive::DriveParams::default()
         };
         simulated(&p, seed)
+    }
+
+    /// The truth measures a receiver's trail: a consumer receiver's courses (lagged
+    /// 0.5–1.5 s) trail a robot's turns by about half a second or more, a snap
+    /// receiver's (0.000 at rest, no lag) by what its antenna's place off the robot's
+    /// axis adds, a tenth of a second or two, whatever both read at rest.
+    #[test]
+    fn the_truth_measures_a_receivers_trail() {
+        let trail = |r| measured_trail(&robot_day(r, 21)).expect("turns measured");
+        let lagged = trail(crate::drive::ReceiverKind::Consumer);
+        let snap = trail(crate::drive::ReceiverKind::Snap);
+        assert!(
+            lagged.se_s <= TRAIL_MAX_SE_S && snap.se_s <= TRAIL_MAX_SE_S,
+            "{lagged:?} {snap:?}"
+        );
+        assert!(lagged.s >= 0.4 && lagged.nearest_lag() >= 0.5, "{lagged:?}");
+        assert!(snap.s.abs() < 0.25, "{snap:?}");
     }
 
     /// The search never ends worse than it started (the model's constants with the

@@ -14,7 +14,9 @@ use ghnet_inference::{Arch, Model, Platform};
 
 use super::blocks::{with_modes, Scored, MIN_GAIN};
 use super::kf::kf_model;
-use super::modes::{fit_modes, modes_of, platform_candidates};
+use super::modes::{
+    changes, fit_modes, measured_trail, modes_of, platform_candidates, TRAIL_MAX_SE_S,
+};
 use super::temporal::train_logged;
 use crate::logs::{self, LogTrack};
 use crate::streval;
@@ -48,7 +50,7 @@ pub fn train_data(
     }
     let base = Model::from_name_or_path(init.unwrap_or(ghnet_inference::DEFAULT_MODEL))?;
     let base = allowed_platform(base, &tr, platform);
-    let (cfg, kf) = own_config(&base, &tr, &va, platform)?;
+    let (cfg, kf, floor) = own_config(&base, &tr, &va, platform)?;
     let cfg = TemporalConfig {
         seed: seed.unwrap_or(cfg.seed),
         epochs: epochs.unwrap_or(cfg.epochs),
@@ -69,7 +71,7 @@ pub fn train_data(
         );
         with_modes(&base, cfg.modes)
     };
-    let model = keep_confirmed(base, trained, cfg.modes, &va);
+    let model = keep_confirmed(base, trained, (cfg.modes, floor), &va);
     let model = keep_sigma_confirmed(model, &tr, &va);
     // Named after the output, whatever it came from: consumers tell models by name.
     let mut meta = model.meta().clone();
@@ -117,9 +119,15 @@ fn allowed_platform(base: Model, tr: &[LogTrack], platform: Option<Platform>) ->
 /// held-out part `va` confirms it over `base` the way the mode fit's steps are
 /// confirmed ([`Scored::confirms_over`]: a fine-tune that only moves one event of the
 /// held-out part is the held-out part's luck); else `base` with `modes` alone, if that
-/// is confirmed (a fitted receiver is not lost with an unconfirmed fine-tune); else
-/// `base` as it is.
-fn keep_confirmed(base: Model, trained: Model, modes: ModeParams, va: &[LogTrack]) -> Model {
+/// gains `floor` there outside its best minute (a fitted receiver is not lost with an
+/// unconfirmed fine-tune; [`MIN_GAIN`], or less for a lag the truth measured:
+/// [`lag_alone`]); else `base` as it is.
+fn keep_confirmed(
+    base: Model,
+    trained: Model,
+    (modes, floor): (ModeParams, f32),
+    va: &[LogTrack],
+) -> Model {
     let base_va = Scored::of(&base, modes_of(&base), va);
     let new_va = Scored::of(&trained, modes, va);
     eprintln!(
@@ -131,7 +139,7 @@ fn keep_confirmed(base: Model, trained: Model, modes: ModeParams, va: &[LogTrack
     if new_va.confirms_over(&base_va) {
         return trained;
     }
-    if modes != modes_of(&base) && Scored::of(&base, modes, va).confirms_over(&base_va) {
+    if modes != modes_of(&base) && Scored::of(&base, modes, va).gain_over(&base_va) >= floor {
         eprintln!(
             "the fine-tuned network is not confirmed on the held-out part: writing {} with \
              the fitted mode filter",
@@ -222,13 +230,15 @@ const MIN_FINE_TUNE_EPOCHS: usize = 4000;
 
 /// The training configuration of `ghnet train --data` from the starting model `base`:
 /// its window, gap limit, start convention (its `kf`) and σ choices, and the mode
-/// filter's constants fitted to `tr` (kept if `va` agrees), each change printed.
+/// filter's constants fitted to `tr` (kept if `va` agrees), each change printed; with
+/// the least held-out gain the constants alone must show to be written
+/// ([`keep_confirmed`]'s `floor`).
 fn own_config(
     base: &Model,
     tr: &[crate::logs::LogTrack],
     va: &[crate::logs::LogTrack],
     platform: Option<ghnet_inference::Platform>,
-) -> Result<(TemporalConfig, Arc<Model>)> {
+) -> Result<(TemporalConfig, Arc<Model>, f32)> {
     let ghnet_inference::weights::ModelKind::Temporal {
         max_gap_s,
         q_deg_per_sqrt_s,
@@ -239,7 +249,7 @@ fn own_config(
     else {
         bail!("--init {}: not a temporal model", base.name());
     };
-    let mut chosen = confirmed_modes(base, modes, tr, va, platform);
+    let (mut chosen, floor) = confirmed_modes(base, modes, tr, va, platform);
     if let Some(p) = platform {
         chosen.platform = p;
     }
@@ -264,20 +274,22 @@ fn own_config(
         cfg
     };
     let kf = Arc::new(kf_model(q_deg_per_sqrt_s, sigma_v_mps, max_gap_s));
-    Ok((cfg, kf))
+    Ok((cfg, kf, floor))
 }
 
 /// The mode filter's constants fitted to `tr` ([`fit_modes`]) if the held-out part
 /// `va` confirms them over `base`'s `modes` and they are [`cross_checked`]; else
-/// `modes` (with the fitted boresight, if `va` confirms that alone). What was fitted,
-/// the gains and the choice are printed.
+/// `modes` (with the fitted boresight, if `va` confirms that alone, and the fitted lag,
+/// if the truth's trail measures it: [`lag_alone`]). What was fitted, the gains and the
+/// choice are printed. With the constants, the least held-out gain they must show to be
+/// written ([`keep_confirmed`]): [`MIN_GAIN`], or `-MIN_GAIN` for a measured lag.
 fn confirmed_modes(
     base: &Model,
     modes: ModeParams,
     tr: &[LogTrack],
     va: &[LogTrack],
     platform: Option<Platform>,
-) -> ModeParams {
+) -> (ModeParams, f32) {
     let t0 = std::time::Instant::now();
     let fitted = fit_modes(base, tr, platform);
     let before = Scored::of(base, modes, va);
@@ -314,11 +326,15 @@ fn confirmed_modes(
             fitted.changes.join(", ")
         );
         chosen = boresight_alone(base, modes, fitted.modes.boresight_deg, &before, va);
+        let with_lag = lag_alone(base, chosen, &fitted.modes, tr, va);
+        if with_lag != chosen {
+            return (with_lag, -MIN_GAIN);
+        }
     }
     for c in fitted.changes.iter().filter(|_| confirmed) {
         eprintln!("  {c}");
     }
-    chosen
+    (chosen, MIN_GAIN)
 }
 
 /// How many parts of the training part [`cross_checked`] fits on all but one of.
@@ -385,6 +401,56 @@ fn boresight_alone(
     }
     eprintln!("  alone, the held-out part confirms:");
     eprintln!("  boresight_deg: {} → {b}", modes.boresight_deg);
+    cand
+}
+
+/// `modes` with the fitted modes' lag alone (`lag_s` and the three it replaces, which
+/// the fit sets alike), if the training part `tr`'s truth measures its courses'
+/// trail ([`measured_trail`], within [`TRAIL_MAX_SE_S`]) nearest that lag of the fit's
+/// grid, and the held-out part `va` loses less than [`MIN_GAIN`] by it outside its
+/// best minute. Two measures on the training part then agree (the searched lag gained
+/// there, and the trail puts it nearest); the MAE a lag gains sits in the turns, a few
+/// stretches of a short log, so a held-out part of a minute or two seldom confirms it
+/// by [`MIN_GAIN`] as well. Without this, robots on a receiver that reads 0.000 at rest
+/// without lagging, led as if it filtered (`hold_lag_s`), kept that lead through their
+/// turns (the snap rows of `models/reports/ownlog.md`).
+fn lag_alone(
+    base: &Model,
+    modes: ModeParams,
+    fitted: &ModeParams,
+    tr: &[LogTrack],
+    va: &[LogTrack],
+) -> ModeParams {
+    let cand = ModeParams {
+        lag_s: fitted.lag_s,
+        hold_lag_s: fitted.hold_lag_s,
+        no_acc_lag_s: fitted.no_acc_lag_s,
+        acc_lag_s: fitted.acc_lag_s,
+        ..modes
+    };
+    if cand == modes {
+        return modes;
+    }
+    let Some(trail) = measured_trail(tr) else {
+        return modes;
+    };
+    if trail.se_s > TRAIL_MAX_SE_S || trail.nearest_lag() != fitted.lag_s {
+        return modes;
+    }
+    if Scored::of(base, cand, va).gain_over(&Scored::of(base, modes, va)) < -MIN_GAIN {
+        return modes;
+    }
+    eprintln!(
+        "  alone, the truth's trail measuring {:.2} ± {:.2} s over {} epochs and the held-out \
+         part losing less than {:.1}%:",
+        trail.s,
+        trail.se_s,
+        trail.epochs,
+        100.0 * MIN_GAIN
+    );
+    for c in changes(&modes, &cand) {
+        eprintln!("  {c}");
+    }
     cand
 }
 
@@ -481,6 +547,37 @@ mod tests {
         assert!(cross_checked(&base, modes_of(&base), &tracks, robot));
     }
 
+    /// A 20-minute 5 Hz robot log with `receiver`, seeded `seed`: its first 80% to fit,
+    /// the rest held out.
+    fn robot_log(
+        receiver: crate::drive::ReceiverKind,
+        seed: u64,
+    ) -> (Vec<LogTrack>, Vec<LogTrack>) {
+        let t = crate::make::modes::robot_day(receiver, seed).remove(0);
+        let cut = t.len() * 4 / 5;
+        (vec![t.slice(0..cut)], vec![t.slice(cut..t.len())])
+    }
+
+    /// A lag of 0 fitted to a robot on a receiver that snaps to 0.000 at rest without
+    /// lagging stands alone, the truth's trail measuring it, against the shipped lead of a
+    /// static hold; fitted to one that lags (the consumer style), it does not.
+    #[test]
+    fn a_lag_stands_alone_where_the_truth_measures_it() {
+        let base = Model::builtin("ghnet-temporal").expect("built in");
+        let modes = modes_of(&base);
+        let none = ModeParams {
+            lag_s: 0.0,
+            hold_lag_s: 0.0,
+            no_acc_lag_s: 0.0,
+            acc_lag_s: 0.0,
+            ..modes
+        };
+        let (tr, va) = robot_log(crate::drive::ReceiverKind::Snap, 30);
+        assert_eq!(lag_alone(&base, modes, &none, &tr, &va), none);
+        let (tr, va) = robot_log(crate::drive::ReceiverKind::Consumer, 30);
+        assert_eq!(lag_alone(&base, modes, &none, &tr, &va), modes);
+    }
+
     /// A fine-tune the held-out part does not confirm (here a network whose weights are
     /// tripled) does not take the confirmed mode fit (a receiver's lag) down with it.
     #[test]
@@ -491,7 +588,7 @@ mod tests {
         let mut params = base.params().clone();
         params.data_mut().iter_mut().for_each(|w| *w *= 3.0);
         let broken = Model::new(params, base.meta().clone());
-        let kept = keep_confirmed(base.clone(), broken, modes, &tracks);
+        let kept = keep_confirmed(base.clone(), broken, (modes, MIN_GAIN), &tracks);
         assert_eq!(kept.params().data(), base.params().data());
         assert_eq!(modes_of(&kept), modes);
     }
