@@ -235,6 +235,23 @@ pub const BORESIGHT_EPOCHS: usize = 100;
 /// Standard errors a measured boresight must stand clear of zero by to be kept.
 pub const BORESIGHT_SE: f32 = 3.0;
 
+/// The epochs of `t` whose course can be set against its truth: not its first or last,
+/// moving at [`BORESIGHT_SPEED`] or faster and at least ten times their sAcc, their
+/// neighbours at most 2.5 s apart; each with the truth's yaw rate (°/s) across its
+/// neighbours and their interval (s). What [`measured_boresight`] and
+/// [`measured_trail`] measure on.
+fn course_epochs(t: &LogTrack) -> impl Iterator<Item = (usize, f32, f64)> + '_ {
+    (1..t.len().saturating_sub(1)).filter_map(move |i| {
+        let speed = t.v_north[i].hypot(t.v_east[i]);
+        let dt = t.t_s[i + 1] - t.t_s[i - 1];
+        if speed < BORESIGHT_SPEED || t.speed_acc[i] * 10.0 > speed || !(dt > 0.0 && dt <= 2.5) {
+            return None;
+        }
+        let yaw = wrap_deg(t.truth_deg[i + 1] - t.truth_deg[i - 1]) / dt as f32;
+        Some((i, yaw, dt))
+    })
+}
+
 /// A boresight ([`ModeParams::boresight_deg`]) measured on a log's truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Boresight {
@@ -258,20 +275,9 @@ pub fn measured_boresight(model: &Model, tracks: &[LogTrack]) -> Option<Boresigh
     let streamed = stream_errors(&Arc::new(model.clone()), tracks);
     let (mut d, mut secs, mut k) = (Vec::new(), 0.0f64, 0);
     for t in tracks {
-        for i in 0..t.len() {
+        for (i, yaw, dt) in course_epochs(t) {
             let e = -streamed.err[k + i].to_degrees();
-            let (vn, ve, acc) = (t.v_north[i], t.v_east[i], t.speed_acc[i]);
-            let speed = vn.hypot(ve);
-            if i == 0 || i + 1 == t.len() || speed < BORESIGHT_SPEED || acc * 10.0 > speed {
-                continue;
-            }
-            let dt = t.t_s[i + 1] - t.t_s[i - 1];
-            let yaw = wrap_deg(t.truth_deg[i + 1] - t.truth_deg[i - 1]) / dt as f32;
-            if dt > 0.0
-                && dt <= 2.5
-                && yaw.abs() <= BORESIGHT_YAW_DEG
-                && e.abs() <= BORESIGHT_MAX_DEG
-            {
+            if yaw.abs() <= BORESIGHT_YAW_DEG && e.abs() <= BORESIGHT_MAX_DEG {
                 d.push(e);
                 secs += (0.5 * dt).min(1.0);
             }
@@ -355,15 +361,8 @@ impl Trail {
 pub fn measured_trail(tracks: &[LogTrack]) -> Option<Trail> {
     let (mut pts, mut secs) = (Vec::new(), 0.0f64);
     for t in tracks {
-        for i in 1..t.len().saturating_sub(1) {
-            let (vn, ve, acc) = (t.v_north[i], t.v_east[i], t.speed_acc[i]);
-            let speed = vn.hypot(ve);
-            let dt = t.t_s[i + 1] - t.t_s[i - 1];
-            if speed < BORESIGHT_SPEED || acc * 10.0 > speed || !(dt > 0.0 && dt <= 2.5) {
-                continue;
-            }
-            let e = wrap_deg(t.truth_deg[i] - ve.atan2(vn).to_degrees());
-            let yaw = wrap_deg(t.truth_deg[i + 1] - t.truth_deg[i - 1]) / dt as f32;
+        for (i, yaw, dt) in course_epochs(t) {
+            let e = wrap_deg(t.truth_deg[i] - t.v_east[i].atan2(t.v_north[i]).to_degrees());
             if e.abs() <= BORESIGHT_MAX_DEG && yaw.is_finite() {
                 pts.push((f64::from(yaw), f64::from(e)));
                 secs += (0.5 * dt).min(1.0);

@@ -15,7 +15,7 @@ use ghnet_inference::{Arch, Model, Platform};
 use super::blocks::{with_modes, Scored, MIN_GAIN};
 use super::kf::kf_model;
 use super::modes::{
-    changes, fit_modes, measured_trail, modes_of, platform_candidates, TRAIL_MAX_SE_S,
+    changes, fit_modes, measured_trail, modes_of, platform_candidates, Trail, TRAIL_MAX_SE_S,
 };
 use super::temporal::train_logged;
 use crate::logs::{self, LogTrack};
@@ -303,7 +303,8 @@ fn confirmed_modes(
         after.mae
     );
     eprintln!("  {}", fitted.platform_note);
-    if let Some(t) = measured_trail(tr) {
+    let trail = measured_trail(tr);
+    if let Some(t) = trail {
         eprintln!(
             "  the courses trail the truth's turns by {:.2} ± {:.2} s over {} epochs (a \
              receiver's lag trails them, an antenna ahead of the turning axis leads them)",
@@ -333,7 +334,7 @@ fn confirmed_modes(
             fitted.changes.join(", ")
         );
         chosen = boresight_alone(base, modes, fitted.modes.boresight_deg, &before, va);
-        let with_lag = lag_alone(base, chosen, &fitted.modes, tr, va);
+        let with_lag = lag_alone(base, chosen, &fitted.modes, trail, va);
         if with_lag != chosen {
             return (with_lag, -MIN_GAIN);
         }
@@ -412,8 +413,8 @@ fn boresight_alone(
 }
 
 /// `modes` with the fitted modes' lag alone (`lag_s` and the three it replaces, which
-/// the fit sets alike), if the training part `tr`'s truth measures its courses'
-/// trail ([`measured_trail`], within [`TRAIL_MAX_SE_S`]) nearest that lag of the fit's
+/// the fit sets alike), if the `trail` the training part's truth measures
+/// ([`measured_trail`], within [`TRAIL_MAX_SE_S`]) is nearest that lag of the fit's
 /// grid, and the held-out part `va` loses less than [`MIN_GAIN`] by it outside its
 /// best minute. Two measures on the training part then agree (the searched lag gained
 /// there, and the trail puts it nearest); the MAE a lag gains sits in the turns, a few
@@ -425,7 +426,7 @@ fn lag_alone(
     base: &Model,
     modes: ModeParams,
     fitted: &ModeParams,
-    tr: &[LogTrack],
+    trail: Option<Trail>,
     va: &[LogTrack],
 ) -> ModeParams {
     let cand = ModeParams {
@@ -438,7 +439,7 @@ fn lag_alone(
     if cand == modes {
         return modes;
     }
-    let Some(trail) = measured_trail(tr) else {
+    let Some(trail) = trail else {
         return modes;
     };
     if trail.se_s > TRAIL_MAX_SE_S || trail.nearest_lag() != fitted.lag_s {
@@ -577,9 +578,15 @@ mod tests {
             ..modes
         };
         let (tr, va) = robot_log(crate::drive::ReceiverKind::Snap, 30);
-        assert_eq!(lag_alone(&base, modes, &none, &tr, &va), none);
+        assert_eq!(
+            lag_alone(&base, modes, &none, measured_trail(&tr), &va),
+            none
+        );
         let (tr, va) = robot_log(crate::drive::ReceiverKind::Consumer, 30);
-        assert_eq!(lag_alone(&base, modes, &none, &tr, &va), modes);
+        assert_eq!(
+            lag_alone(&base, modes, &none, measured_trail(&tr), &va),
+            modes
+        );
     }
 
     /// A fine-tune the held-out part does not confirm (here a network whose weights are
