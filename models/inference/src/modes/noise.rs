@@ -4,6 +4,7 @@
 
 use super::creep::steady_creep;
 use super::params::ModeParams;
+use super::release::{RELEASE_LOW_RATE_DT, RELEASE_NOISE_CAP};
 use super::scatter::SCATTER_SMOOTH_DT;
 use super::state::StepState;
 use super::vehicle::{acc_ratio_factor, Platform, Vehicle, ACC_RATIO_QUANTILE};
@@ -168,6 +169,42 @@ pub(super) fn measured(
         return (sig, shat, r, true);
     }
     (sig, shat, r, r < mp.moving_r || released)
+}
+
+/// [`measured`] for a standing car whose receiver holds static, on epochs under
+/// [`RELEASE_LOW_RATE_DT`] apart: by at least the noise its courses at speed have shown
+/// (`shown_noise`, [`HOLD_SCATTER_K`] times its scatter), at most the release rule's cap
+/// on a noise estimate ([`RELEASE_NOISE_CAP`]). The σ_v, speed, course σ and whether it
+/// moves; `base` (what [`measured`] gave) where that noise is not larger or not yet
+/// measured, or the epoch is no such stand's.
+///
+/// Such a receiver's zeros hide its noise at rest, so its σ_v there is a guess (its sAcc,
+/// or 0.1 m/s without one), and a noisy one's blips between the zeros (0.5–0.9 m/s,
+/// their course held for a few epochs by the noise's correlation) read as motion under
+/// that guess: the stand's heading followed them tens of degrees off, and a true
+/// departure along the body was then refused by the axis rule (simulated consumer and
+/// snap cars at 5 and 10 Hz, `models/reports/unmet.md`). Its courses at speed show the
+/// noise the zeros hide, as they do for a released car's bound in [`measured`]. Capped,
+/// a steady 1 m/s still moves (uncapped, a 5 Hz consumer car's creep along its axis was
+/// `Held` for 1.8 s). At lower rates the noise at rest is independent from one epoch to
+/// the next, no blip holds its course, and the 1 Hz sections lost up to 1% by the
+/// floor. The glitch gate keeps `base`: with this σ_v a departure's first epochs went
+/// unconfirmed and stayed `Held` for 1.6 s at 5 Hz, and glitch bursts passed a stand.
+#[inline]
+pub(super) fn at_shown_noise(
+    mp: &ModeParams,
+    st: &StepState,
+    speed: f32,
+    dt: f32,
+    base: (f32, f32, f32, bool),
+) -> (f32, f32, f32, bool) {
+    let shown = shown_noise(mp, &st.vehicle).min(RELEASE_NOISE_CAP);
+    let stand = st.car_stands() && st.vehicle.holds_static() && !st.released();
+    if !stand || dt >= RELEASE_LOW_RATE_DT || !shown.is_finite() || shown <= base.0 {
+        return base;
+    }
+    let (shat, r) = measurement(speed, shown);
+    (shown, shat, r, r < mp.moving_r)
 }
 
 /// The course σ (radians) the filter's gain weighs this epoch's course by: `r`, the one

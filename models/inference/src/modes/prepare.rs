@@ -2,7 +2,8 @@
 //! ending in the step the network corrects.
 
 use super::noise::{
-    cap2, driving_variance, gain_r, measured, measurement, update_noise, walk_variance,
+    at_shown_noise, cap2, driving_variance, gain_r, measured, measurement, update_noise,
+    walk_variance,
 };
 use super::params::ModeParams;
 use super::release::{glitch, keep_or_restore_held, track_motion, RELEASE_SPEED};
@@ -45,11 +46,12 @@ pub fn prepare(
     }
     step.hold = false;
     update_scatter(st, vn, ve, dt);
-    let (sig, shat, r, moving) = measured(mp, st, speed, acc);
+    let base = measured(mp, st, speed, acc);
+    let (sig, shat, r, moving) = at_shown_noise(mp, st, speed, dt, base);
     let r_gain = gain_r(mp, st, [vn, ve], acc, r, (moving, dt));
     let p_walk = walk_variance(mp, st, dt, moving);
-    // The gate first: a glitch must neither change the direction nor count as driving.
-    step.glitch = glitch(mp, st, vn, ve, speed, sig, dt, moving, p_walk, r);
+    // The gate first, by `base`: a glitch must neither change the direction nor count as driving.
+    step.glitch = glitch(mp, st, vn, ve, speed, base.0, dt, base.3, p_walk, base.2);
     if !step.glitch {
         st.driving = st.released();
     }
