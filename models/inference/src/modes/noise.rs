@@ -198,9 +198,12 @@ pub(super) fn at_shown_noise(
     dt: f32,
     base: (f32, f32, f32, bool),
 ) -> (f32, f32, f32, bool) {
-    let shown = shown_noise(mp, &st.vehicle).min(RELEASE_NOISE_CAP);
     let stand = st.car_stands() && st.vehicle.holds_static() && !st.released();
-    if !stand || dt >= RELEASE_LOW_RATE_DT || !shown.is_finite() || shown <= base.0 {
+    if !stand || dt >= RELEASE_LOW_RATE_DT {
+        return base;
+    }
+    let shown = shown_noise(mp, &st.vehicle).min(RELEASE_NOISE_CAP);
+    if !shown.is_finite() || shown <= base.0 {
         return base;
     }
     let (shat, r) = measurement(speed, shown);
