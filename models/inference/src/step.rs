@@ -154,6 +154,10 @@ pub fn advance(
 /// ([`crate::modes::SigmaMaps::with_turn`]), and a car whose receiver reports no
 /// speed accuracy its lag term ([`crate::modes::SigmaMaps::with_lag`]), in gentle
 /// turns too when its velocity holds static (a navigation filter's output).
+/// A moving epoch at [`crate::modes::TURN_SPEED`] or faster of a receiver whose sAcc
+/// is more than twice the course scatter it has shown at speed has its raw σ divided by
+/// the excess first ([`crate::modes::acc_overstatement`]): the maps are fitted on
+/// receivers whose sAcc is about their noise.
 /// A car or platform moving at [`crate::modes::TURN_SPEED`] or faster has a σ of at
 /// least the course scatter the source has shown at speed over the speed
 /// ([`crate::modes::SigmaMaps::scatter_k`]) when that scatter exceeds
@@ -194,6 +198,11 @@ pub fn reported_sigma(
     let s = (log_sigma + y2)
         .clamp(crate::head::LOG_SIGMA_MIN, crate::head::LOG_SIGMA_MAX)
         .exp();
+    let s = if moved && step.has_acc && step.speed >= crate::modes::TURN_SPEED {
+        s / crate::modes::acc_overstatement(step.sigma_v, st.vehicle.scatter)
+    } else {
+        s
+    };
     let car = st.vehicle.car;
     let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
     let sigma = maps.with_turn(car, moved, step.speed, mapped, st.yaw);

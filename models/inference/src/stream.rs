@@ -1968,6 +1968,23 @@ mod tests {
         assert!(cover >= 0.9, "covered {cover}");
     }
 
+    /// A 1 Hz car whose receiver reports three times its velocity noise as sAcc (0.3 m/s
+    /// against 0.1 m/s per axis): its median σ on a straight at 10 m/s is under twice
+    /// that of the same car with an honest sAcc (1.2 times; 2.2 times without
+    /// [`crate::modes::acc_overstatement`]), and still covers nine errors in ten within
+    /// 2σ.
+    #[test]
+    fn an_overstated_sacc_does_not_widen_sigma_beyond_what_the_courses_show() {
+        let shipped = || Model::builtin("ghnet-temporal").expect("built in");
+        let (_, honest) = straight_at_1hz(shipped(), 0.1, 0.173);
+        let (cover, overstated) = straight_at_1hz(shipped(), 0.3, 0.173);
+        assert!(
+            overstated < 2.0 * honest,
+            "median σ {overstated}° against {honest}° with an honest sAcc"
+        );
+        assert!(cover >= 0.9, "covered {cover}");
+    }
+
     /// Asserts that [`leave_stand`] on receiver `[acc, amp, speed]` answers at most
     /// 1.2 s of the drive off `Held`, forward and backing out, and that the stand's
     /// answers stayed within 5° of its heading.

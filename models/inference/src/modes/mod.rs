@@ -105,8 +105,8 @@ pub use release::{
     TURN_SPEED_CHANGE, UNSURE_HELD_DEG,
 };
 pub use scatter::{
-    extrapolation_share, SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED,
-    SCATTER_TAU_S,
+    acc_overstatement, extrapolation_share, ACC_OVERSTATED_MAX, ACC_OVERSTATED_RATIO,
+    SCATTER_MAX_DT, SCATTER_RATIO_ACC, SCATTER_SMOOTH_DT, SCATTER_SPEED, SCATTER_TAU_S,
 };
 pub use sigma::{
     clean, SigmaMap, SigmaMaps, Smoothing, CAR_BEYOND_K, CLEAN_NOISE_RATIO, LAG_NONE_S,
