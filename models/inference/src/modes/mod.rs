@@ -88,7 +88,9 @@ pub use commit::{
     commit, corrected_gain, reverse_logit, Decision, LEAD_YAW_TAU_S, REVERSE_PRIOR, SENSE_RUN_M,
     SENSE_SIGMA_DEG, YAW_TAU_S,
 };
-pub use creep::{stationary_course, ROBOT_COURSE_NOISE_K, ROBOT_COURSE_TURN_DEG_S};
+pub use creep::{
+    stationary_course, ROBOT_COURSE_NOISE_K, ROBOT_COURSE_TURN_DEG_S, ROBOT_REST_NOISE_SHARE,
+};
 pub use doubt::{
     stand_doubt, STAND_DOUBT_CLIP_K, STAND_DOUBT_NOISE_K, STAND_DOUBT_SIGMA_K, STAND_DOUBT_STEADY,
     STAND_DOUBT_TAU_S,
@@ -1017,6 +1019,32 @@ mod tests {
             vehicle.noise = 0.1 * mp.quantile_factor();
             let got = stationary_course(&mp, &vehicle, now, before, 0.3, 0.2);
             assert_eq!(got, answered, "{platform}, turns {turns}");
+        }
+    }
+
+    /// A robot whose slow speeds read 0.3 m/s of noise at rest (its creeps lift that
+    /// quantile over the noise itself) on a receiver reporting 0.5 m/s as sAcc answers
+    /// a steady creep at 0.25 m/s with its course once enough slow epochs have shown
+    /// that noise, and so it does on a receiver that holds static and reports 0.3 m/s; a
+    /// creep at 0.15 m/s, under [`ROBOT_REST_NOISE_SHARE`] of either, it does not.
+    /// Before those epochs the bar is the noise at rest whole.
+    #[test]
+    fn a_robots_steady_creep_over_the_noise_it_showed_is_answered() {
+        let mp = ModeParams::default();
+        let mut fresh = StepState::fresh(Platform::Robot).vehicle;
+        fresh.noise = 0.3 * mp.quantile_factor();
+        let mut seen = fresh;
+        seen.acc_ratio_n = ACC_RATIO_MIN_EPOCHS;
+        let mut holding = fresh;
+        holding.zeros = HOLD_MIN_ZEROS;
+        assert!(holding.holds_static() && !seen.holds_static());
+        for (vehicle, acc, over) in [(seen, 0.5, true), (holding, 0.3, true), (fresh, 0.5, false)] {
+            for (speed, answered) in [(0.25, over), (0.15, false)] {
+                let (before, now) = ([speed, 0.0], [speed, 0.01]);
+                let got = stationary_course(&mp, &vehicle, now, before, acc, 0.2);
+                let what = format!("sAcc {acc}, {} slow epochs", vehicle.acc_ratio_n);
+                assert_eq!(got, answered, "{what}, creep at {speed} m/s");
+            }
         }
     }
 
