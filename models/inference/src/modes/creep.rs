@@ -35,8 +35,9 @@ pub const ROBOT_COURSE_NOISE_K: f32 = 1.0;
 /// under 0.5% either way, and no car section moved. Before those slow epochs (a cold
 /// start) the bar is the noise at rest whole: at 5 Hz a fifth of pairs of a standing
 /// honest receiver's noise velocities point within a creep's turn of each other, and
-/// over 0.6 of the noise they were answered as creeps. Nor does a receiver without sAcc get the share: NMEA robots
-/// moved by up to 0.4% either way with it, at no gain.
+/// over 0.6 of the noise they were answered as creeps. Nor does a receiver without
+/// sAcc get the share: NMEA robots moved by up to 0.4% either way with it, at no gain;
+/// the held-out platforms of `models/reports/ghnet-temporal.md` moved by 0.1%.
 pub const ROBOT_REST_NOISE_SHARE: f32 = 0.6;
 
 /// How far (°/s) a creeping platform's course may turn from one epoch to the next

@@ -40,9 +40,9 @@ pub const SCATTER_RATIO_ACC: f32 = 3.0;
 /// may be before a moving epoch's σ is taken to be overstated by it
 /// ([`acc_overstatement`]). The σ maps are fitted on receivers whose sAcc is 0.7–1.5
 /// times their noise; a u-blox reporting three times its sAcc made the filter's σ, and
-/// with it the reported σ at speed, three times what its courses showed: its cars'
-/// answers at 2 m/s and faster were 77–86% within 1σ and 95–98% within 2σ (the
-/// sAcc × 3 car sections of `models/reports/unmet.md`, before). From 1.5 times the
+/// with it the reported σ at speed, three times what its courses showed: without this
+/// division its cars' answers at 2 m/s and faster were 77–86% within 1σ and 95–98%
+/// within 2σ (the sAcc × 3 car sections of `models/reports/unmet.md`). From 1.5 times the
 /// scatter the rough sAcc of ordinary u-blox and RTKLIB cars narrowed their σ too (by
 /// up to two points within 1σ on simulated drives); from twice it, by under one.
 ///
