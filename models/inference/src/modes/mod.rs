@@ -96,7 +96,7 @@ pub use doubt::{
     STAND_DOUBT_TAU_S,
 };
 pub(crate) use noise::random_walk_variance;
-pub use noise::{ACC_RATIO_WARMUP, HOLD_SCATTER_K};
+pub use noise::{ACC_RATIO_WARMUP, GATE_REST_NOISE_K, HOLD_SCATTER_K};
 pub use params::{ModeParams, LEVER_M, PESSIMISTIC_SACC_RATIO};
 pub use prepare::{prepare, ESCAPE_NOISE_K, STEER_IN_NOISE_K};
 pub use release::{

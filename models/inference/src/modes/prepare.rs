@@ -2,8 +2,8 @@
 //! ending in the step the network corrects.
 
 use super::noise::{
-    at_shown_noise, cap2, driving_variance, gain_r, measured, measurement, update_noise,
-    walk_variance,
+    at_shown_noise, cap2, driving_variance, gain_r, gate_sigma, measured, measurement,
+    update_noise, walk_variance,
 };
 use super::params::ModeParams;
 use super::release::{glitch, keep_or_restore_held, track_motion, RELEASE_SPEED};
@@ -51,7 +51,8 @@ pub fn prepare(
     let r_gain = gain_r(mp, st, [vn, ve], acc, r, (moving, dt));
     let p_walk = walk_variance(mp, st, dt, moving);
     // The gate first, by `base`: a glitch must neither change the direction nor count as driving.
-    step.glitch = glitch(mp, st, vn, ve, speed, base.0, dt, base.3, p_walk, base.2);
+    let gate_sig = gate_sigma(mp, st, base.0, acc);
+    step.glitch = glitch(mp, st, vn, ve, speed, gate_sig, dt, base.3, p_walk, base.2);
     if !step.glitch {
         st.driving = st.released();
     }
@@ -79,8 +80,7 @@ pub fn prepare(
         // glitches, a stand, then two more made it a car.
         (st.t_fast, st.n_fast) = (0.0, 0);
     }
-    step.prior = st.psi;
-    step.p = p;
+    (step.prior, step.p) = (st.psi, p);
     step.r2 = r_gain * r_gain;
     // A car at rest has no course: feeding its noise in turned held headings. (A slow
     // car above the noise still feeds, with the small gain its σ gives.)
