@@ -102,10 +102,14 @@ pub fn stationary_course(
         mp.rest_noise(vehicle)
     } else if vehicle.holds_static() {
         ROBOT_REST_NOISE_SHARE * acc
-    } else if vehicle.acc_ratio_n >= ACC_RATIO_MIN_EPOCHS {
-        acc.min((ROBOT_REST_NOISE_SHARE * mp.rest_noise(vehicle)).max(mp.sigma_floor))
     } else {
-        mp.trusted_acc(vehicle, acc)
+        // The sAcc earned at rest (as `ModeParams::trusted_acc`), by the share once shown.
+        let share = if vehicle.acc_ratio_n >= ACC_RATIO_MIN_EPOCHS {
+            ROBOT_REST_NOISE_SHARE
+        } else {
+            1.0
+        };
+        acc.min((share * mp.rest_noise(vehicle)).max(mp.sigma_floor))
     };
     steady_creep(v, prev_v, ROBOT_COURSE_NOISE_K * noise, dt)
 }
