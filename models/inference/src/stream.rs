@@ -569,8 +569,19 @@ impl StreamPredictor {
         let [vn, ve, speed, acc] = pending.epoch;
         let trusted = [vn, ve, speed, pending.step.acc];
         let mut p = self.finish(psi, std, pending.had_prior, standing, fed, trusted);
+        // The heading held since the history moved, which a creep off its axis shows
+        // stale (none before: a cold start's creep is more likely noise).
+        let held = if h.state.moved { d.psi } else { f32::NAN };
         if p.status == Status::Stationary
-            && stationary_course(modes, &h.state.vehicle, [vn, ve], prev_v, acc, pending.dt)
+            && stationary_course(
+                modes,
+                &h.state.vehicle,
+                [vn, ve],
+                prev_v,
+                acc,
+                pending.dt,
+                held,
+            )
         {
             // The course of a creep may be a back-up's, a half turn off: two σ reach it
             // (as for any answer whose sense is unknown). On the simulated robots of

@@ -2,8 +2,8 @@
 //! rather than the heading the history holds.
 
 use super::params::ModeParams;
-use super::release::{within_deg, RELEASE_COURSE_DEG};
-use super::vehicle::{Vehicle, ACC_RATIO_MIN_EPOCHS};
+use super::release::{off_axis, within_deg, RELEASE_COURSE_DEG};
+use super::vehicle::{Platform, Vehicle, ACC_RATIO_MIN_EPOCHS, TURN_IN_PLACE_DEG};
 
 /// Times its receiver's noise (the sAcc it has earned, else the σ measured at rest) a
 /// robot's speed (declared, or `auto` seen to turn in place) must exceed, this epoch
@@ -52,16 +52,36 @@ pub const ROBOT_REST_NOISE_SHARE: f32 = 0.6;
 /// speeds must be over the receiver's noise.
 pub const ROBOT_COURSE_TURN_DEG_S: f32 = 45.0;
 
+/// Speed (m/s) both epochs of a steady creep must exceed for an `auto` vehicle known to
+/// be neither a car nor a robot to answer it with its course, off the axis of the
+/// heading it holds ([`stationary_course`]): the noise bar alone, before the noise at
+/// rest is measured, let pairs of a quiet receiver's noise pass. Without it, simulated
+/// 1 Hz RTKLIB robots (models/reports/unmet.md) answered 0.1% worse; with it no car
+/// section moved by more than 0.01°, and on the shared drive's copies with 0.05 m/s of
+/// added noise and no sAcc (models/reports/noisy-real.md) one standing epoch each,
+/// just over it, is answered with its noise's course (about 0.05° of their MAE).
+pub const AUTO_CREEP_MIN_SPEED: f32 = 0.1;
+
 /// Whether a `Stationary` answer (no heading known) of `vehicle` gives this epoch's
 /// course (velocity `v`, m/s north and east), with σ [`SENSE_SIGMA_DEG`] (a creep may
 /// be a back-up), rather than the heading the history holds with the uniform σ.
 ///
-/// Only for a declared [`Platform::Robot`], or an `auto` vehicle not known to be a
-/// car that has shown it turns in place ([`Vehicle::turns`]): such a platform turns in
-/// place at its stops, so what it holds is stale, while a car's held heading is right
-/// however it creeps or reverses. (Every `auto` vehicle not known to be a car, from
-/// its cold start, made the car sections of models/reports/unmet.md worse: half the
-/// simulated cars back out of their space first, answered a half turn off.)
+/// For a declared [`Platform::Robot`], or an `auto` vehicle not known to be a car that
+/// has shown it turns in place ([`Vehicle::turns`]): such a platform turns in place at
+/// its stops, so what it holds is stale, while a car's held heading is right however it
+/// creeps or reverses. (Every `auto` vehicle not known to be a car, from its cold
+/// start, made the car sections of models/reports/unmet.md worse: half the simulated
+/// cars back out of their space first, answered a half turn off.)
+///
+/// And for an `auto` vehicle known to be neither, once it has moved (`held`, the
+/// heading its history holds, is NaN before): a steady creep faster than
+/// [`AUTO_CREEP_MIN_SPEED`] that points more than [`TURN_IN_PLACE_DEG`] off the axis of
+/// `held` (neither along it nor against it) shows a turn since, which no car makes
+/// standing; a car's creep or back-up runs along its axis. Seeing a robot turn in place
+/// takes a departure and seconds of steady motion at the release rule's bars, which a
+/// slow robot on a receiver reporting a pessimistic sAcc seldom clears: until then its
+/// creeps off a spin kept the heading from before it (on the u-blox sAcc × 3 robots of
+/// models/reports/unmet.md, nearly all of what `auto` lost to a declared robot).
 ///
 /// Only when `v` and the velocity the epoch before used (`prev_v`, `dt` seconds
 /// earlier) are both over [`ROBOT_COURSE_NOISE_K`] times the receiver's noise (below)
@@ -85,8 +105,8 @@ pub const ROBOT_COURSE_TURN_DEG_S: f32 = 45.0;
 /// reported sAcc such sections answered 0.2–0.7% worse).
 ///
 /// [`SENSE_SIGMA_DEG`]: crate::modes::SENSE_SIGMA_DEG
-/// [`Platform::Robot`]: crate::modes::Platform::Robot
 #[inline]
+#[allow(clippy::too_many_arguments)] // one epoch's numbers
 pub fn stationary_course(
     mp: &ModeParams,
     vehicle: &Vehicle,
@@ -94,11 +114,23 @@ pub fn stationary_course(
     prev_v: [f32; 2],
     acc: f32,
     dt: f32,
+    held: f32,
 ) -> bool {
-    if !vehicle.turns_in_place() {
-        return false;
+    let bar = creep_noise(mp, vehicle, acc) * ROBOT_COURSE_NOISE_K;
+    if vehicle.turns_in_place() {
+        return steady_creep(v, prev_v, bar, dt);
     }
-    let noise = if !acc.is_finite() {
+    vehicle.platform == Platform::Auto
+        && !vehicle.car
+        && held.is_finite()
+        && steady_creep(v, prev_v, bar.max(AUTO_CREEP_MIN_SPEED), dt)
+        && off_axis(v[1].atan2(v[0]), held) > TURN_IN_PLACE_DEG.to_radians()
+}
+
+/// The receiver noise (m/s) a creep must exceed ([`stationary_course`]).
+#[inline]
+fn creep_noise(mp: &ModeParams, vehicle: &Vehicle, acc: f32) -> f32 {
+    if !acc.is_finite() {
         mp.rest_noise(vehicle)
     } else if vehicle.holds_static() {
         ROBOT_REST_NOISE_SHARE * acc
@@ -110,8 +142,7 @@ pub fn stationary_course(
             1.0
         };
         acc.min((share * mp.rest_noise(vehicle)).max(mp.sigma_floor))
-    };
-    steady_creep(v, prev_v, ROBOT_COURSE_NOISE_K * noise, dt)
+    }
 }
 
 /// Whether velocity `v` (m/s north and east) and the one `dt` s before it (`prev_v`)

@@ -89,7 +89,8 @@ pub use commit::{
     SENSE_SIGMA_DEG, YAW_TAU_S,
 };
 pub use creep::{
-    stationary_course, ROBOT_COURSE_NOISE_K, ROBOT_COURSE_TURN_DEG_S, ROBOT_REST_NOISE_SHARE,
+    stationary_course, AUTO_CREEP_MIN_SPEED, ROBOT_COURSE_NOISE_K, ROBOT_COURSE_TURN_DEG_S,
+    ROBOT_REST_NOISE_SHARE,
 };
 pub use doubt::{
     stand_doubt, STAND_DOUBT_CLIP_K, STAND_DOUBT_NOISE_K, STAND_DOUBT_SIGMA_K, STAND_DOUBT_STEADY,
@@ -975,7 +976,8 @@ mod tests {
             let what = format!("{off}° off, burst {burst}: {st:?}");
             assert!(!st.vehicle.car, "{what}");
             assert_eq!(st.vehicle.turns, turns, "{what}");
-            let answered = stationary_course(&mp, &st.vehicle, creep.0, creep.1, 0.05, 0.2);
+            let answered =
+                stationary_course(&mp, &st.vehicle, creep.0, creep.1, 0.05, 0.2, f32::NAN);
             assert_eq!(answered, turns, "{what}");
         }
     }
@@ -989,15 +991,32 @@ mod tests {
         let robot = StepState::fresh(Platform::Robot).vehicle;
         let (s, c) = 50f32.to_radians().sin_cos();
         let (before, now) = ([0.3, 0.0], [0.3 * c, 0.3 * s]);
-        assert!(stationary_course(&mp, &robot, now, before, 0.05, 1.0));
-        assert!(!stationary_course(&mp, &robot, now, before, 0.05, 0.2));
+        assert!(stationary_course(
+            &mp,
+            &robot,
+            now,
+            before,
+            0.05,
+            1.0,
+            f32::NAN
+        ));
+        assert!(!stationary_course(
+            &mp,
+            &robot,
+            now,
+            before,
+            0.05,
+            0.2,
+            f32::NAN
+        ));
         assert!(!stationary_course(
             &mp,
             &robot,
             [-0.3, 0.0],
             before,
             0.05,
-            1.0
+            1.0,
+            f32::NAN
         ));
     }
 
@@ -1017,9 +1036,46 @@ mod tests {
             let mut vehicle = StepState::fresh(platform).vehicle;
             vehicle.turns = turns;
             vehicle.noise = 0.1 * mp.quantile_factor();
-            let got = stationary_course(&mp, &vehicle, now, before, 0.3, 0.2);
+            let got = stationary_course(&mp, &vehicle, now, before, 0.3, 0.2, f32::NAN);
             assert_eq!(got, answered, "{platform}, turns {turns}");
         }
+    }
+
+    /// An `auto` vehicle known to be neither a car nor a robot, standing on the heading
+    /// it drove north with, answers a steady creep at 0.3 m/s with its course when it
+    /// points east or north-west (a turn since, which no car makes standing), not when
+    /// it runs along its axis either way (a car's creep or back-up), nor one under
+    /// [`AUTO_CREEP_MIN_SPEED`], nor before the history moved (`held` NaN), nor once
+    /// the vehicle is known to be a car.
+    #[test]
+    fn an_auto_vehicles_creep_off_its_held_axis_is_answered() {
+        let mp = ModeParams::default();
+        let mut vehicle = StepState::fresh(Platform::Auto).vehicle;
+        vehicle.noise = 0.02 * mp.quantile_factor();
+        let at = |deg: f32, speed: f32| {
+            let (s, c) = deg.to_radians().sin_cos();
+            [speed * c, speed * s]
+        };
+        let north = 0.0f32;
+        for (deg, speed, held, answered) in [
+            (90.0, 0.3, north, true),
+            (-50.0, 0.3, north, true),
+            (20.0, 0.3, north, false),
+            (180.0, 0.3, north, false),
+            (90.0, 0.08, north, false),
+            (90.0, 0.3, f32::NAN, false),
+        ] {
+            let v = at(deg, speed);
+            let got = stationary_course(&mp, &vehicle, v, v, 0.05, 0.2, held);
+            assert_eq!(
+                got, answered,
+                "creep at {deg}° and {speed} m/s, held {held}"
+            );
+        }
+        let mut car = vehicle;
+        car.car = true;
+        let v = at(90.0, 0.3);
+        assert!(!stationary_course(&mp, &car, v, v, 0.05, 0.2, north));
     }
 
     /// A robot whose slow speeds read 0.3 m/s of noise at rest (its creeps lift that
@@ -1041,7 +1097,7 @@ mod tests {
         for (vehicle, acc, over) in [(seen, 0.5, true), (holding, 0.3, true), (fresh, 0.5, false)] {
             for (speed, answered) in [(0.25, over), (0.15, false)] {
                 let (before, now) = ([speed, 0.0], [speed, 0.01]);
-                let got = stationary_course(&mp, &vehicle, now, before, acc, 0.2);
+                let got = stationary_course(&mp, &vehicle, now, before, acc, 0.2, f32::NAN);
                 let what = format!("sAcc {acc}, {} slow epochs", vehicle.acc_ratio_n);
                 assert_eq!(got, answered, "{what}, creep at {speed} m/s");
             }
