@@ -116,14 +116,16 @@ pub fn stationary_course(
     dt: f32,
     held: f32,
 ) -> bool {
+    let turns = vehicle.turns_in_place();
+    if !turns && (vehicle.platform != Platform::Auto || vehicle.car || !held.is_finite()) {
+        // A car, or an `auto` vehicle that has not moved: its stand holds.
+        return false;
+    }
     let bar = creep_noise(mp, vehicle, acc) * ROBOT_COURSE_NOISE_K;
-    if vehicle.turns_in_place() {
+    if turns {
         return steady_creep(v, prev_v, bar, dt);
     }
-    vehicle.platform == Platform::Auto
-        && !vehicle.car
-        && held.is_finite()
-        && steady_creep(v, prev_v, bar.max(AUTO_CREEP_MIN_SPEED), dt)
+    steady_creep(v, prev_v, bar.max(AUTO_CREEP_MIN_SPEED), dt)
         && off_axis(v[1].atan2(v[0]), held) > TURN_IN_PLACE_DEG.to_radians()
 }
 
