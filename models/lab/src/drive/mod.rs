@@ -15,12 +15,14 @@
 //!   and sometimes back up: a held heading is wrong after a spin.
 //! * **Receivers**: 1, 2, 5 or 10 Hz; velocity noise σ_v per track log-uniform 0.02–0.3
 //!   m/s with a time-correlated part; optional first-order lag (τ up to 1.5 s, the
-//!   smoothing consumer receivers apply); rare glitches; fix gaps (seconds to minutes);
-//!   and one of five output styles: u-blox-like (raw velocity, mm/s, a rough sAcc),
-//!   RTKLIB-like (raw velocity, a nearly constant formal sAcc near 0.07 m/s),
-//!   NMEA-like (speed and course only, course frozen below 0.1 m/s, no sAcc),
-//!   consumer (smoothed, 0.000 at rest, no sAcc), or a u-blox with its static hold on
-//!   (as the consumer style, with the u-blox sAcc).
+//!   smoothing consumer receivers apply; the styles that hold static smooth their
+//!   noise with it, as a navigation filter does, the others add it after); rare
+//!   glitches; fix gaps (seconds to minutes); and one of five output styles:
+//!   u-blox-like (raw velocity, mm/s, a rough sAcc), RTKLIB-like (raw velocity, a
+//!   nearly constant formal sAcc near 0.07 m/s), NMEA-like (speed and course only,
+//!   course frozen below 0.1 m/s, no sAcc), consumer (smoothed, 0.000 at rest, no
+//!   sAcc), or a u-blox with its static hold on (as the consumer style, with the u-blox
+//!   sAcc).
 //!
 //! Everything is seeded; a track is reproduced from `(parameters, seed)`.
 
@@ -461,6 +463,62 @@ fn lever_velocity(h_deg: f64, yaw_rate: f64, lever: (f64, f64)) -> (f64, f64) {
     (forward * c - right * s, forward * s + right * c)
 }
 
+/// The velocity noise of a receiver whose output is its navigation filter's (the
+/// styles that hold static, [`ReceiverKind::Consumer`] and [`ReceiverKind::UbloxHold`]):
+/// the raw noise (correlated and white, drawn at every 10 Hz step) passes through the
+/// same first-order lag as the motion, then is scaled back to the track's σ. Such a
+/// filter smooths its noise as it smooths the course, so its output's noise is
+/// correlated over the lag, where raw Doppler velocity's white share is not. The other
+/// styles' noise is added to the lagged motion at each output epoch.
+struct SmoothedNoise {
+    /// Filtered correlated and white parts, north and east.
+    corr: [f64; 2],
+    white: [f64; 2],
+    /// Stationary standard deviation of the filtered sum for unit raw σ.
+    scale: f64,
+}
+
+impl SmoothedNoise {
+    /// `None` unless `rx` is a navigation filter's output that lags; `phi` is the raw
+    /// correlated part's correlation over one step.
+    fn new(rx: &Receiver, phi: f64) -> Option<Self> {
+        let filters = matches!(rx.kind, ReceiverKind::Consumer | ReceiverKind::UbloxHold);
+        if !filters || rx.lag_s <= 0.0 {
+            return None;
+        }
+        // y = a·y + α·x: a white input of unit variance leaves α²/(1−a²), a first-order
+        // one of correlation φ leaves that times (1+aφ)/(1−aφ).
+        let alpha = 1.0 - (-DT / rx.lag_s).exp();
+        let a = 1.0 - alpha;
+        let white = alpha * alpha / (1.0 - a * a);
+        let corr = white * (1.0 + a * phi) / (1.0 - a * phi);
+        let var = NOISE_CORRELATED_SHARE.powi(2) * corr + NOISE_WHITE_SHARE.powi(2) * white;
+        Some(Self {
+            corr: [0.0; 2],
+            white: [0.0; 2],
+            scale: var.sqrt(),
+        })
+    }
+
+    /// One 10 Hz step of the filter (`alpha` the lag's), `ar` the raw correlated part.
+    fn step(&mut self, alpha: f64, ar: &[f64; 2], rng: &mut ChaCha8Rng) {
+        for ((c, w), a) in self.corr.iter_mut().zip(&mut self.white).zip(ar) {
+            let x: f64 = rng.sample(StandardNormal);
+            *c += alpha * (a - *c);
+            *w += alpha * (x - *w);
+        }
+    }
+
+    /// The noise (north, east; m/s) of an output epoch for a track of noise `sigma`.
+    fn out(&self, sigma: f64) -> (f64, f64) {
+        let at = |i: usize| {
+            sigma * (NOISE_CORRELATED_SHARE * self.corr[i] + NOISE_WHITE_SHARE * self.white[i])
+                / self.scale
+        };
+        (at(0), at(1))
+    }
+}
+
 /// The receiver's view of the true motion: lag, correlated + white noise, glitches,
 /// output style, rate and gaps.
 fn observe(
@@ -480,6 +538,7 @@ fn observe(
     let phi = (-DT / rx.corr_s).exp();
     let (mut ln, mut le) = (0.0, 0.0);
     let mut ar = [0.0f64; 2];
+    let mut smooth = SmoothedNoise::new(rx, phi);
     let mut course = f64::NAN;
     let mut glitches = Glitches {
         left: 0,
@@ -496,15 +555,25 @@ fn observe(
         ln += alpha * (v * c + an - ln);
         le += alpha * (v * s + ae - le);
         correlated_step(&mut ar, phi, rng);
+        if let Some(sm) = smooth.as_mut() {
+            sm.step(alpha, &ar, rng);
+        }
         if k % every != 0 || gaps[k] {
             continue;
         }
-        let white = |rng: &mut ChaCha8Rng| {
-            rx.sigma * NOISE_WHITE_SHARE * rng.sample::<f64, _>(StandardNormal)
-        };
         let (gn, ge) = glitches.next(p, bad[k], rng);
-        let vn = ln + rx.sigma * NOISE_CORRELATED_SHARE * ar[0] + white(rng) + gn;
-        let ve = le + rx.sigma * NOISE_CORRELATED_SHARE * ar[1] + white(rng) + ge;
+        let (nn, ne) = match &smooth {
+            Some(sm) => sm.out(rx.sigma),
+            None => {
+                let mut white = || NOISE_WHITE_SHARE * rng.sample::<f64, _>(StandardNormal);
+                (
+                    rx.sigma * (NOISE_CORRELATED_SHARE * ar[0] + white()),
+                    rx.sigma * (NOISE_CORRELATED_SHARE * ar[1] + white()),
+                )
+            }
+        };
+        let vn = ln + nn + gn;
+        let ve = le + ne + ge;
         let speed = vn.hypot(ve);
         // Snaps to zero below its threshold (the track's sAcc factor sets it at
         // 0.3–0.6 m/s), so motion starts with a jump; its course holds while it does.
@@ -636,6 +705,66 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Lag-1 correlation of the 5 Hz changes of a noise series sampled every other
+    /// 10 Hz step.
+    fn change_correlation(x: &[f64]) -> f64 {
+        let d: Vec<f64> = x
+            .iter()
+            .step_by(2)
+            .collect::<Vec<_>>()
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .collect();
+        let num: f64 = d.windows(2).map(|w| w[0] * w[1]).sum();
+        num / d.iter().map(|a| a * a).sum::<f64>()
+    }
+
+    /// A navigation filter's output noise keeps the track's σ but is smoothed over the
+    /// lag: its 5 Hz changes no longer undo each other as raw noise's white share makes
+    /// them.
+    #[test]
+    fn a_filtering_receivers_noise_is_smoothed_to_its_sigma() {
+        let rx = Receiver {
+            kind: ReceiverKind::Consumer,
+            rate_hz: 5,
+            sigma: 0.1,
+            lag_s: 1.0,
+            corr_s: 1.0,
+            sacc_factor: 1.0,
+            boresight_deg: 0.0,
+            slip_deg: 0.0,
+            lever_m: (0.0, 0.0),
+        };
+        let phi = (-DT / rx.corr_s).exp();
+        let alpha = 1.0 - (-DT / rx.lag_s).exp();
+        let mut sm = SmoothedNoise::new(&rx, phi).expect("a consumer receiver filters");
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let mut ar = [0.0f64; 2];
+        let (mut filtered, mut raw) = (Vec::new(), Vec::new());
+        for k in 0..60_000 {
+            correlated_step(&mut ar, phi, &mut rng);
+            sm.step(alpha, &ar, &mut rng);
+            if k >= 100 {
+                filtered.push(sm.out(rx.sigma).0);
+                let w: f64 = rng.sample(StandardNormal);
+                raw.push(rx.sigma * (NOISE_CORRELATED_SHARE * ar[0] + NOISE_WHITE_SHARE * w));
+            }
+        }
+        let sd = (filtered.iter().map(|x| x * x).sum::<f64>() / filtered.len() as f64).sqrt();
+        assert!((sd - 0.1).abs() < 0.01, "σ {sd}");
+        let (f, r) = (change_correlation(&filtered), change_correlation(&raw));
+        assert!(f > -0.15 && r < -0.25, "filtered {f}, raw {r}");
+        let snap = Receiver {
+            kind: ReceiverKind::Snap,
+            lag_s: 0.0,
+            ..rx
+        };
+        assert!(
+            SmoothedNoise::new(&snap, phi).is_none(),
+            "raw velocity is not filtered"
+        );
     }
 
     /// Cars stop, reverse with the velocity opposite the heading, and never turn in

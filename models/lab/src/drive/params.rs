@@ -24,7 +24,7 @@ pub enum ReceiverKind {
     /// Speed and course only: course frozen below 0.1 m/s, no accuracy.
     Nmea,
     /// A consumer receiver (phone, low-cost module): velocity smoothed with a lag of
-    /// 0.5–1.5 s, exactly 0.000 below a speed of 0.3–0.6 m/s (so the first moving
+    /// 0.5–1.5 s, its noise smoothed by the same lag, exactly 0.000 below a speed of 0.3–0.6 m/s (so the first moving
     /// epoch jumps from zero), no accuracy. Held out of the shipped recipes: it is how
     /// the tables show σ on a receiver the model has not met.
     Consumer,
