@@ -117,7 +117,8 @@ section() {
     done
   done
   # A receiver that reads 0.000 at rest without lagging (raw velocity behind a static
-  # hold, no sAcc): led as if it lagged, since nothing online tells the two apart.
+  # hold, no sAcc): led as if it lagged until its white noise shows raw velocity (at
+  # 4 Hz and faster, and not on its quietest drives).
   seed=9200
   for vehicle in cars robots; do
     for hz in 1 5 10; do

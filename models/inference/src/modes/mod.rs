@@ -77,6 +77,7 @@ mod prepare;
 mod release;
 mod scatter;
 mod sigma;
+mod smooth;
 mod start;
 mod state;
 mod vehicle;
@@ -115,6 +116,7 @@ pub use sigma::{
     clean, SigmaMap, SigmaMaps, Smoothing, CAR_BEYOND_K, CLEAN_NOISE_RATIO, LAG_NONE_S,
     LAG_YAW_DEADBAND_DEG, PLATFORM_TURN_SHARE, PLATFORM_TURN_SPEED, SIGMA_KNOTS, TURN_SPEED,
 };
+pub use smooth::{SMOOTH_MAX_DT, SMOOTH_MIN_PAIRS, SMOOTH_SPEED, SMOOTH_WHITE_BAR, SMOOTH_WINDOW};
 pub use start::START_S;
 pub use state::{HeldHeading, MotionRun, Step, StepState};
 pub use vehicle::{
@@ -449,6 +451,34 @@ mod tests {
             last = (d.psi, c);
         }
         wrap_rad(last.0 - last.1).to_degrees()
+    }
+
+    /// A receiver that holds static but passes raw velocity through is not led once its
+    /// noise has shown that: courses jittering from epoch to epoch (each change undoing
+    /// the last, as white noise does) over 60 s of driving, then a turn at 10°/s, and
+    /// the answer stays on the course. The same drive with a slow wander (a navigation
+    /// filter's smoothed noise) is led as a static hold is.
+    #[test]
+    fn a_static_hold_whose_noise_is_white_is_not_led() {
+        let lead = |jitter: fn(usize) -> f32| {
+            let mut st = StepState::fresh(Platform::Robot);
+            run(&mut st, 10, 0.0, 0.0);
+            for k in 0..300 {
+                epoch_acc(&mut st, 1.5, jitter(k), f32::NAN);
+            }
+            let mut last = (0.0, 0.0);
+            for k in 1..=25 {
+                let (d, c) = epoch_acc(&mut st, 1.5, 2.0 * k as f32, f32::NAN);
+                last = (d.psi, c);
+            }
+            (wrap_rad(last.0 - last.1).to_degrees(), st.vehicle)
+        };
+        let (white, v) = lead(|k| if k % 2 == 0 { 1.5 } else { -1.5 });
+        assert!(v.raw_hold(), "{v:?}");
+        assert!(white.abs() < 1.0, "raw velocity behind a hold: {white}°");
+        let (smooth, v) = lead(|k| 3.0 * (k as f32 * 0.05).sin());
+        assert!(v.holds_static() && !v.raw_velocity(), "{v:?}");
+        assert!((3.0..6.0).contains(&smooth), "a filter's output: {smooth}°");
     }
 
     /// A receiver that holds static (exact zeros at rest, no creeping speeds) runs a

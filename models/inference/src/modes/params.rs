@@ -183,16 +183,21 @@ impl ModeParams {
     /// The lag (s) the answered heading leads a vehicle's course by, its receiver
     /// reporting a speed accuracy (`has_acc`) or not. A receiver that holds static is a
     /// navigation filter's output, which lags: `hold_lag_s`, or `lag_s` if larger,
-    /// whatever carries it. Otherwise nothing for a car (its results are tuned on
+    /// whatever carries it, unless its noise shows raw velocity behind the hold
+    /// ([`Vehicle::raw_hold`]). Otherwise nothing for a car (its results are tuned on
     /// receivers that show no sign of their lag), and `lag_s` for another vehicle, or
-    /// `no_acc_lag_s` if larger when its receiver gives no accuracy.
+    /// `no_acc_lag_s` if larger when its receiver gives no accuracy and may filter
+    /// (not a raw hold).
+    ///
+    /// [`Vehicle::raw_hold`]: crate::modes::Vehicle::raw_hold
     #[inline]
     pub(super) fn lead_s(&self, v: &Vehicle, has_acc: bool) -> f32 {
-        if v.holds_static() {
+        let raw_hold = v.raw_hold();
+        if v.holds_static() && !raw_hold {
             self.lag_s.max(self.hold_lag_s)
         } else if v.car {
             0.0
-        } else if has_acc {
+        } else if has_acc || raw_hold {
             self.lag_s
         } else {
             self.lag_s.max(self.no_acc_lag_s)
@@ -216,7 +221,10 @@ impl ModeParams {
     /// is whole up to `L/2τ` (1 m/s) and gone from `L/τ` (2 m/s); above, the
     /// turn term of the σ ([`SigmaMaps::yaw_s`]) covers both as noise. A receiver
     /// that reports its accuracy (`has_acc`) and shows its noise at rest gives raw
-    /// velocity, which lags little: τ = `acc_lag_s`, whole up to 2 m/s.
+    /// velocity, which lags little: τ = `acc_lag_s`, whole up to 2 m/s; so does one
+    /// that holds static but whose noise shows raw velocity ([`Vehicle::raw_hold`]).
+    ///
+    /// [`Vehicle::raw_hold`]: crate::modes::Vehicle::raw_hold
     ///
     /// [`Step::lever_s`]: crate::modes::Step
     /// [`Step::lever_max`]: crate::modes::Step
@@ -226,7 +234,7 @@ impl ModeParams {
         if !v.car || self.lever_m <= 0.0 || speed <= 0.0 {
             return (0.0, 0.0);
         }
-        let lag = if has_acc && !v.holds_static() {
+        let lag = if (has_acc && !v.holds_static()) || v.raw_hold() {
             self.acc_lag_s
         } else {
             self.hold_lag_s

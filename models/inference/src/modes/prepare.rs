@@ -8,9 +8,10 @@ use super::noise::{
 use super::params::ModeParams;
 use super::release::{glitch, keep_or_restore_held, track_motion, RELEASE_SPEED};
 use super::scatter::update_scatter;
+use super::smooth::update_smooth;
 use super::start::started;
 use super::state::{Step, StepState};
-use super::vehicle::{Platform, FAST_EPOCHS, SURE_CAR_SPEED};
+use super::vehicle::{Platform, Vehicle, FAST_EPOCHS, SURE_CAR_SPEED};
 use crate::head::{facing, wrap_rad, MAX_STD_DEG};
 
 /// The first half of an epoch: time, noise, the rules; mutates the non-heading parts of
@@ -27,7 +28,7 @@ pub fn prepare(
 ) -> Step {
     let speed = vn.hypot(ve);
     let course = ve.atan2(vn);
-    update_noise(mp, &mut st.vehicle, speed, acc);
+    observe_receiver(mp, &mut st.vehicle, [vn, ve], acc, dt);
     let trusted = mp.trusted_acc(&st.vehicle, acc); // whether it moves; σ keeps `acc`
     let run = track_motion(mp, st, vn, ve, trusted, dt);
     keep_or_restore_held(mp, st, run);
@@ -95,6 +96,14 @@ pub fn prepare(
     step.lead_s = mp.lead_s(&st.vehicle, step.has_acc);
     (step.lever_s, step.lever_max) = mp.lever(&st.vehicle, speed, step.has_acc);
     step
+}
+
+/// What every epoch's velocity (`v`, north and east, m/s; sAcc `acc`, `dt` s after the
+/// last) says about the receiver: its noise at rest and static hold
+/// ([`update_noise`]), and whether its noise is smoothed ([`update_smooth`]).
+fn observe_receiver(mp: &ModeParams, vehicle: &mut Vehicle, v: [f32; 2], acc: f32, dt: f32) {
+    update_noise(mp, vehicle, v[0].hypot(v[1]), acc);
+    update_smooth(vehicle, v[0], v[1], dt);
 }
 
 /// The heading an epoch starts from ([`StepState::prior`]): after a fix gap a car's

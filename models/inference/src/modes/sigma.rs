@@ -188,14 +188,23 @@ impl SigmaMaps {
     /// [`PLATFORM_TURN_SHARE`] of the term from [`PLATFORM_TURN_SPEED`], added in
     /// quadrature and not mapped again (see `car_turn`), also when their answer is led
     /// ([`crate::modes::Step::lead_s`]): the lead takes out the least lag a filtering
-    /// receiver has, and the share covers the rest, which no course shows.
-    pub fn with_turn(&self, car: bool, moving: bool, speed: f32, mapped_deg: f32, yaw: f32) -> f32 {
+    /// receiver has, and the share covers the rest, which no course shows. A static
+    /// hold whose noise shows raw velocity (`raw_hold`,
+    /// [`crate::modes::Vehicle::raw_hold`]) has no lag to cover: no share.
+    pub fn with_turn(
+        &self,
+        car: bool,
+        moving: bool,
+        speed: f32,
+        mapped_deg: f32,
+        (yaw, raw_hold): (f32, bool),
+    ) -> f32 {
         if !moving || self.yaw_s <= 0.0 || !yaw.is_finite() {
             return mapped_deg;
         }
         let term = self.yaw_s * yaw.abs().to_degrees();
         if !car {
-            if speed < PLATFORM_TURN_SPEED {
+            if speed < PLATFORM_TURN_SPEED || raw_hold {
                 return mapped_deg;
             }
             return mapped_deg.hypot(PLATFORM_TURN_SHARE * term);
@@ -223,7 +232,7 @@ impl SigmaMaps {
         yaw: f32,
     ) -> f32 {
         let deadband = match smoothing {
-            Smoothing::Accuracy => return sigma_deg,
+            Smoothing::Accuracy | Smoothing::Raw => return sigma_deg,
             Smoothing::Unknown => LAG_YAW_DEADBAND_DEG,
             Smoothing::HoldsStatic => 0.0,
         };
@@ -253,6 +262,10 @@ pub enum Smoothing {
     /// (1.5–4 °/s) fell short of 90% within 2σ at 1, 5 and 10 Hz, their answers trailing
     /// the heading there (models/reports/unmet.md).
     HoldsStatic,
+    /// No speed accuracy, a static hold, but white noise
+    /// ([`crate::modes::Vehicle::raw_hold`]): raw velocity behind the hold, which does
+    /// not trail a turn. No lag term.
+    Raw,
 }
 
 impl Smoothing {
@@ -264,15 +277,18 @@ impl Smoothing {
     /// [`ModeParams::lever`] take a static hold first instead: they move the answer by
     /// a lag, and a static hold is the surest sign of a navigation filter's. No simulated
     /// receiver both reports sAcc and holds static, so which order serves such a
-    /// receiver (a u-blox with its static hold on) is untested.
+    /// receiver (a u-blox with its static hold on) is untested. A static hold whose
+    /// noise shows raw velocity (`raw_hold`, [`crate::modes::Vehicle::raw_hold`]) has
+    /// no lag to cover.
     ///
     /// [`ModeParams::lead_s`]: crate::modes::ModeParams
     /// [`ModeParams::lever`]: crate::modes::ModeParams
-    pub fn of(has_acc: bool, holds_static: bool) -> Self {
-        match (has_acc, holds_static) {
-            (true, _) => Smoothing::Accuracy,
-            (false, false) => Smoothing::Unknown,
-            (false, true) => Smoothing::HoldsStatic,
+    pub fn of(has_acc: bool, holds_static: bool, raw_hold: bool) -> Self {
+        match (has_acc, holds_static, raw_hold) {
+            (true, _, _) => Smoothing::Accuracy,
+            (false, false, _) => Smoothing::Unknown,
+            (false, true, false) => Smoothing::HoldsStatic,
+            (false, true, true) => Smoothing::Raw,
         }
     }
 }
@@ -308,11 +324,12 @@ pub const LAG_YAW_DEADBAND_DEG: f32 = 1.5;
 /// antenna sits near its turning centre, which leaves about the lag's share.
 ///
 /// A receiver that does not lag (raw Doppler velocity, RTKLIB) is over-covered in
-/// its turns by this share (the robots' RTKLIB rows of models/reports/unmet.md), but
-/// only a static hold ([`crate::modes::Vehicle::holds_static`]) shows a navigation
-/// filter online: the simulator adds its receivers' noise after their lag, so a
-/// lagging receiver's velocity is as white as a raw one's and a test of whiteness
-/// (epoch-to-epoch differences against the noise) cannot tell them apart there.
+/// its turns by this share (the robots' RTKLIB rows of models/reports/unmet.md). Only
+/// a static hold ([`crate::modes::Vehicle::holds_static`]) shows a navigation filter
+/// online, and only there does the whiteness of the noise say that the filter passes
+/// raw velocity ([`crate::modes::Vehicle::raw_hold`]: no share): the simulator's
+/// other styles add their noise after their lag, so a lagging u-blox or NMEA
+/// receiver's velocity is as white as a raw one's and the test cannot be tuned there.
 pub const PLATFORM_TURN_SHARE: f32 = 0.5;
 
 /// Speed (m/s) from which a moving platform's σ gets its share of the turn term:
@@ -341,18 +358,39 @@ mod tests {
     fn turn_term_adds_in_quadrature_for_moving_vehicles() {
         let (ten, maps) = turning(0.4);
         for yaw in [ten, -ten] {
-            assert!((maps.with_turn(true, true, 8.0, 3.0, yaw) - 5.0).abs() < 1e-4);
+            assert!((maps.with_turn(true, true, 8.0, 3.0, (yaw, false)) - 5.0).abs() < 1e-4);
         }
-        assert_eq!(maps.with_turn(true, true, 1.5, 3.0, ten), 3.0, "slow");
-        assert_eq!(maps.with_turn(true, false, 8.0, 3.0, ten), 3.0, "standing");
         assert_eq!(
-            SigmaMaps::default().with_turn(true, true, 8.0, 3.0, ten),
+            maps.with_turn(true, true, 1.5, 3.0, (ten, false)),
+            3.0,
+            "slow"
+        );
+        assert_eq!(
+            maps.with_turn(true, false, 8.0, 3.0, (ten, false)),
+            3.0,
+            "standing"
+        );
+        assert_eq!(
+            SigmaMaps::default().with_turn(true, true, 8.0, 3.0, (ten, false)),
             3.0
         );
         let platform = 3f32.hypot(PLATFORM_TURN_SHARE * 4.0);
-        assert!((maps.with_turn(false, true, 1.5, 3.0, ten) - platform).abs() < 1e-4);
-        assert_eq!(maps.with_turn(false, true, 0.5, 3.0, ten), 3.0, "creeping");
-        assert_eq!(maps.with_turn(false, false, 1.5, 3.0, ten), 3.0, "standing");
+        assert!((maps.with_turn(false, true, 1.5, 3.0, (ten, false)) - platform).abs() < 1e-4);
+        assert_eq!(
+            maps.with_turn(false, true, 0.5, 3.0, (ten, false)),
+            3.0,
+            "creeping"
+        );
+        assert_eq!(
+            maps.with_turn(false, true, 1.5, 3.0, (ten, true)),
+            3.0,
+            "raw hold"
+        );
+        assert_eq!(
+            maps.with_turn(false, false, 1.5, 3.0, (ten, false)),
+            3.0,
+            "standing"
+        );
     }
 
     /// A car whose receiver has no sAcc gets the lag term in quadrature while moving
@@ -379,6 +417,10 @@ mod tests {
         let kept = [
             ((none, false, true, 8.0, ten), "platform"),
             ((acc, true, true, 8.0, ten), "has sAcc"),
+            (
+                (Smoothing::Raw, true, true, 8.0, ten),
+                "raw velocity behind a hold",
+            ),
             ((none, true, false, 8.0, ten), "standing"),
             ((none, true, true, 1.5, ten), "slow car"),
             ((none, true, true, 8.0, straight), "straight"),

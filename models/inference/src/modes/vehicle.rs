@@ -173,6 +173,18 @@ pub struct Vehicle {
     pub acc_ratio: f32,
     /// Slow epochs with an sAcc that have fed `acc_ratio` (its first steps are larger).
     pub acc_ratio_n: u32,
+    /// Running mean agreement of successive velocity changes while moving (NaN until
+    /// the first pair): negative for white noise, near zero or positive for a
+    /// navigation filter's smoothed output ([`SMOOTH_WHITE_BAR`],
+    /// [`Vehicle::raw_velocity`]).
+    ///
+    /// [`SMOOTH_WHITE_BAR`]: crate::modes::SMOOTH_WHITE_BAR
+    pub smooth: f32,
+    /// Pairs of changes that have fed `smooth`.
+    pub smooth_n: u32,
+    /// The last epoch's velocity (north, east), its change since the one before and
+    /// that interval (s): the chain `smooth` is fed from (all 0 when broken).
+    pub smooth_last: [f32; 5],
 }
 
 impl Vehicle {
@@ -189,7 +201,18 @@ impl Vehicle {
         sure_car: false,
         acc_ratio: f32::NAN,
         acc_ratio_n: 0,
+        smooth: f32::NAN,
+        smooth_n: 0,
+        smooth_last: [0.0; 5],
     };
+
+    /// Whether the receiver holds static but passes raw velocity through
+    /// ([`Vehicle::holds_static`], [`Vehicle::raw_velocity`]): its zeros are a hold's,
+    /// its course does not trail a turn, so it is neither led nor given a lag's σ.
+    #[inline]
+    pub fn raw_hold(&self) -> bool {
+        self.holds_static() && self.raw_velocity()
+    }
 
     /// How far under its sAcc the receiver's noise at rest lies: its running low
     /// quantile of slow speeds over their sAcc (`acc_ratio`) over the one a receiver

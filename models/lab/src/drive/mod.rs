@@ -468,7 +468,8 @@ fn lever_velocity(h_deg: f64, yaw_rate: f64, lever: (f64, f64)) -> (f64, f64) {
 /// the raw noise (correlated and white, drawn at every 10 Hz step) passes through the
 /// same first-order lag as the motion, then is scaled back to the track's σ. Such a
 /// filter smooths its noise as it smooths the course, so its output's noise is
-/// correlated over the lag, where raw Doppler velocity's white share is not. The other
+/// correlated over the lag, where raw Doppler velocity's white share is not: the sign
+/// the model reads to tell a lagging receiver from one that does not lag. The other
 /// styles' noise is added to the lagged motion at each output epoch.
 struct SmoothedNoise {
     /// Filtered correlated and white parts, north and east.
@@ -723,7 +724,8 @@ mod tests {
 
     /// A navigation filter's output noise keeps the track's σ but is smoothed over the
     /// lag: its 5 Hz changes no longer undo each other as raw noise's white share makes
-    /// them.
+    /// them (the sign the model reads to tell a lagging receiver that holds static from
+    /// a raw one, `Vehicle::raw_velocity` in ghnet-inference).
     #[test]
     fn a_filtering_receivers_noise_is_smoothed_to_its_sigma() {
         let rx = Receiver {

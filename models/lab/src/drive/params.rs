@@ -34,8 +34,9 @@ pub enum ReceiverKind {
     /// of the shipped recipes.
     UbloxHold,
     /// A receiver that snaps to 0.000 at rest as the consumer style does but passes its
-    /// raw velocity through without a lag, and reports no accuracy: nothing in its
-    /// output tells it from the consumer style, whose lag the model leads. Held out of
+    /// raw velocity through without a lag, and reports no accuracy: only its noise,
+    /// white where the consumer style's is smoothed, tells it from the consumer style,
+    /// whose lag the model leads (`Vehicle::raw_hold` in ghnet-inference). Held out of
     /// the shipped recipes.
     Snap,
 }
