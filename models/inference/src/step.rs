@@ -205,9 +205,8 @@ pub fn reported_sigma(
     };
     let car = st.vehicle.car;
     let mapped = maps.apply(car, moved, st.held_clean, s.to_degrees());
-    let raw_hold = st.vehicle.raw_hold();
-    let sigma = maps.with_turn(car, moved, step.speed, mapped, (st.yaw, raw_hold));
-    let smoothing = crate::modes::Smoothing::of(step.has_acc, st.vehicle.holds_static(), raw_hold);
+    let smoothing = crate::modes::Smoothing::of(step.has_acc, &st.vehicle);
+    let sigma = maps.with_turn(car, moved, step.speed, mapped, st.yaw, smoothing);
     let sigma = maps.with_lag(smoothing, car, moved, step.speed, sigma, st.yaw);
     // Reversing, a car manoeuvres with its wheel turned: its antenna's course is off
     // its heading by up to `atan(k_max·L)`, which the lever correction takes out only

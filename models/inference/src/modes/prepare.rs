@@ -28,7 +28,7 @@ pub fn prepare(
 ) -> Step {
     let speed = vn.hypot(ve);
     let course = ve.atan2(vn);
-    observe_receiver(mp, &mut st.vehicle, [vn, ve], acc, dt);
+    observe_receiver(mp, &mut st.vehicle, [vn, ve], speed, acc, dt);
     let trusted = mp.trusted_acc(&st.vehicle, acc); // whether it moves; σ keeps `acc`
     let run = track_motion(mp, st, vn, ve, trusted, dt);
     keep_or_restore_held(mp, st, run);
@@ -98,12 +98,19 @@ pub fn prepare(
     step
 }
 
-/// What every epoch's velocity (`v`, north and east, m/s; sAcc `acc`, `dt` s after the
-/// last) says about the receiver: its noise at rest and static hold
+/// What every epoch's velocity (`v`, north and east, m/s, of norm `speed`; sAcc `acc`,
+/// `dt` s after the last) says about the receiver: its noise at rest and static hold
 /// ([`update_noise`]), and whether its noise is smoothed ([`update_smooth`]).
-fn observe_receiver(mp: &ModeParams, vehicle: &mut Vehicle, v: [f32; 2], acc: f32, dt: f32) {
-    update_noise(mp, vehicle, v[0].hypot(v[1]), acc);
-    update_smooth(vehicle, v[0], v[1], dt);
+fn observe_receiver(
+    mp: &ModeParams,
+    vehicle: &mut Vehicle,
+    v: [f32; 2],
+    speed: f32,
+    acc: f32,
+    dt: f32,
+) {
+    update_noise(mp, vehicle, speed, acc);
+    update_smooth(vehicle, v, speed, dt);
 }
 
 /// The heading an epoch starts from ([`StepState::prior`]): after a fix gap a car's

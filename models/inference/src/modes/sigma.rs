@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::vehicle::Vehicle;
 use crate::head::MAX_STD_DEG;
 
 /// Speed (m/s) from which a moving epoch's σ gets the turn term
@@ -189,22 +190,23 @@ impl SigmaMaps {
     /// quadrature and not mapped again (see `car_turn`), also when their answer is led
     /// ([`crate::modes::Step::lead_s`]): the lead takes out the least lag a filtering
     /// receiver has, and the share covers the rest, which no course shows. A static
-    /// hold whose noise shows raw velocity (`raw_hold`,
-    /// [`crate::modes::Vehicle::raw_hold`]) has no lag to cover: no share.
+    /// hold whose noise shows raw velocity ([`Smoothing::Raw`]) has no lag to cover: no
+    /// share.
     pub fn with_turn(
         &self,
         car: bool,
         moving: bool,
         speed: f32,
         mapped_deg: f32,
-        (yaw, raw_hold): (f32, bool),
+        yaw: f32,
+        smoothing: Smoothing,
     ) -> f32 {
         if !moving || self.yaw_s <= 0.0 || !yaw.is_finite() {
             return mapped_deg;
         }
         let term = self.yaw_s * yaw.abs().to_degrees();
         if !car {
-            if speed < PLATFORM_TURN_SPEED || raw_hold {
+            if speed < PLATFORM_TURN_SPEED || smoothing == Smoothing::Raw {
                 return mapped_deg;
             }
             return mapped_deg.hypot(PLATFORM_TURN_SHARE * term);
@@ -278,17 +280,20 @@ impl Smoothing {
     /// a lag, and a static hold is the surest sign of a navigation filter's. No simulated
     /// receiver both reports sAcc and holds static, so which order serves such a
     /// receiver (a u-blox with its static hold on) is untested. A static hold whose
-    /// noise shows raw velocity (`raw_hold`, [`crate::modes::Vehicle::raw_hold`]) has
-    /// no lag to cover.
+    /// noise shows raw velocity ([`Vehicle::raw_hold`]) has no lag to cover.
     ///
     /// [`ModeParams::lead_s`]: crate::modes::ModeParams
     /// [`ModeParams::lever`]: crate::modes::ModeParams
-    pub fn of(has_acc: bool, holds_static: bool, raw_hold: bool) -> Self {
-        match (has_acc, holds_static, raw_hold) {
-            (true, _, _) => Smoothing::Accuracy,
-            (false, false, _) => Smoothing::Unknown,
-            (false, true, false) => Smoothing::HoldsStatic,
-            (false, true, true) => Smoothing::Raw,
+    /// [`Vehicle::raw_hold`]: crate::modes::Vehicle::raw_hold
+    pub fn of(has_acc: bool, vehicle: &Vehicle) -> Self {
+        if has_acc {
+            Smoothing::Accuracy
+        } else if !vehicle.holds_static() {
+            Smoothing::Unknown
+        } else if vehicle.raw_hold() {
+            Smoothing::Raw
+        } else {
+            Smoothing::HoldsStatic
         }
     }
 }
@@ -357,40 +362,28 @@ mod tests {
     #[test]
     fn turn_term_adds_in_quadrature_for_moving_vehicles() {
         let (ten, maps) = turning(0.4);
+        let filter = Smoothing::Unknown;
         for yaw in [ten, -ten] {
-            assert!((maps.with_turn(true, true, 8.0, 3.0, (yaw, false)) - 5.0).abs() < 1e-4);
+            assert!((maps.with_turn(true, true, 8.0, 3.0, yaw, filter) - 5.0).abs() < 1e-4);
         }
         assert_eq!(
-            maps.with_turn(true, true, 1.5, 3.0, (ten, false)),
-            3.0,
-            "slow"
-        );
-        assert_eq!(
-            maps.with_turn(true, false, 8.0, 3.0, (ten, false)),
-            3.0,
-            "standing"
-        );
-        assert_eq!(
-            SigmaMaps::default().with_turn(true, true, 8.0, 3.0, (ten, false)),
+            SigmaMaps::default().with_turn(true, true, 8.0, 3.0, ten, filter),
             3.0
         );
         let platform = 3f32.hypot(PLATFORM_TURN_SHARE * 4.0);
-        assert!((maps.with_turn(false, true, 1.5, 3.0, (ten, false)) - platform).abs() < 1e-4);
-        assert_eq!(
-            maps.with_turn(false, true, 0.5, 3.0, (ten, false)),
-            3.0,
-            "creeping"
-        );
-        assert_eq!(
-            maps.with_turn(false, true, 1.5, 3.0, (ten, true)),
-            3.0,
-            "raw hold"
-        );
-        assert_eq!(
-            maps.with_turn(false, false, 1.5, 3.0, (ten, false)),
-            3.0,
-            "standing"
-        );
+        let s = maps.with_turn(false, true, 1.5, 3.0, ten, filter);
+        assert!((s - platform).abs() < 1e-4);
+        let kept = [
+            ((true, true, 1.5, filter), "slow"),
+            ((true, false, 8.0, filter), "standing"),
+            ((false, true, 0.5, filter), "creeping"),
+            ((false, true, 1.5, Smoothing::Raw), "raw hold"),
+            ((false, false, 1.5, filter), "standing platform"),
+        ];
+        for ((car, moving, speed, smoothing), what) in kept {
+            let s = maps.with_turn(car, moving, speed, 3.0, ten, smoothing);
+            assert_eq!(s, 3.0, "{what}");
+        }
     }
 
     /// A car whose receiver has no sAcc gets the lag term in quadrature while moving

@@ -12,7 +12,7 @@
 //!
 //! [`ModeParams::lead_s`]: crate::modes::ModeParams
 
-use super::vehicle::Vehicle;
+use super::vehicle::{SmoothLink, Vehicle};
 
 /// Speed (m/s) from which an epoch's velocity change counts: both epochs of each change
 /// at least this fast (a receiver that holds static reads 0.000 under 0.3–0.6 m/s).
@@ -46,37 +46,52 @@ pub const SMOOTH_WINDOW: f32 = 2000.0;
 /// [`Vehicle::raw_velocity`]: crate::modes::Vehicle::raw_velocity
 pub const SMOOTH_WHITE_BAR: f32 = -0.12;
 
-/// Feed [`Vehicle::smooth`] with this epoch's velocity (`vn`, `ve`, m/s), `dt` s after
-/// the previous one: each axis's change since then against the change before, as
-/// `2ab/(a²+b²)` (bounded, so a glitch counts as one pair, not by its size). A chain
-/// of changes needs evenly spaced epochs at [`SMOOTH_SPEED`] or faster, at most
-/// [`SMOOTH_MAX_DT`] apart; anything else starts it again.
+/// Feed [`Vehicle::smooth`] with this epoch's velocity (`v`, north and east, m/s, of
+/// norm `speed`), `dt` s after the previous one: each axis's change since then against
+/// the change before, as `2ab/(a²+b²)` (bounded, so a glitch counts as one pair, not by
+/// its size). A chain of changes needs evenly spaced epochs at [`SMOOTH_SPEED`] or
+/// faster, at most [`SMOOTH_MAX_DT`] apart; anything else starts it again.
 #[inline]
-pub(super) fn update_smooth(v: &mut Vehicle, vn: f32, ve: f32, dt: f32) {
-    let [pn, pe, dn0, de0, dt0] = v.smooth_last;
-    let fast = vn.hypot(ve) >= SMOOTH_SPEED;
-    let chained = dt > 0.0 && dt <= SMOOTH_MAX_DT && dt0 > 0.0;
-    if !fast {
-        v.smooth_last = [0.0; 5];
+pub(super) fn update_smooth(vehicle: &mut Vehicle, v: [f32; 2], speed: f32, dt: f32) {
+    if speed < SMOOTH_SPEED || speed.is_nan() {
+        vehicle.smooth_last = None;
         return;
     }
-    if !chained {
-        v.smooth_last = [vn, ve, f32::NAN, f32::NAN, dt.max(f32::MIN_POSITIVE)];
-        return;
-    }
-    let (dn, de) = (vn - pn, ve - pe);
-    if dn0.is_finite() && (dt - dt0).abs() <= 0.1 * dt {
-        for (a, b) in [(dn0, dn), (de0, de)] {
-            let sq = a * a + b * b;
-            if sq > 0.0 {
-                v.smooth_n = v.smooth_n.saturating_add(1);
-                let w = 1.0 / (v.smooth_n as f32).min(SMOOTH_WINDOW);
-                let m = if v.smooth.is_finite() { v.smooth } else { 0.0 };
-                v.smooth = m + w * (2.0 * a * b / sq - m);
+    let last = match vehicle.smooth_last {
+        Some(last) if dt > 0.0 && dt <= SMOOTH_MAX_DT => last,
+        _ => {
+            vehicle.smooth_last = Some(SmoothLink { v, change: None });
+            return;
+        }
+    };
+    let d = [v[0] - last.v[0], v[1] - last.v[1]];
+    if let Some((d0, dt0)) = last.change {
+        if (dt - dt0).abs() <= 0.1 * dt {
+            for (a, b) in d0.into_iter().zip(d) {
+                add_pair(vehicle, a, b);
             }
         }
     }
-    v.smooth_last = [vn, ve, dn, de, dt];
+    vehicle.smooth_last = Some(SmoothLink {
+        v,
+        change: Some((d, dt)),
+    });
+}
+
+/// One pair of successive changes `a`, `b` (m/s) of an axis into the running mean.
+#[inline]
+fn add_pair(vehicle: &mut Vehicle, a: f32, b: f32) {
+    let sq = a * a + b * b;
+    if sq > 0.0 {
+        vehicle.smooth_n = vehicle.smooth_n.saturating_add(1);
+        let w = 1.0 / (vehicle.smooth_n as f32).min(SMOOTH_WINDOW);
+        let m = if vehicle.smooth.is_finite() {
+            vehicle.smooth
+        } else {
+            0.0
+        };
+        vehicle.smooth = m + w * (2.0 * a * b / sq - m);
+    }
 }
 
 impl Vehicle {
@@ -113,7 +128,8 @@ mod tests {
                 lp[i] += alpha * (w - lp[i]);
                 *x = 0.1 * if smoothed { lp[i] / scale } else { w };
             }
-            update_smooth(&mut v, 1.5 + noise[0], noise[1], 0.2);
+            let u = [1.5 + noise[0], noise[1]];
+            update_smooth(&mut v, u, u[0].hypot(u[1]), 0.2);
         }
         v
     }
@@ -145,10 +161,10 @@ mod tests {
             (1.0, 1.0),
             (1.3, 0.2),
         ] {
-            update_smooth(&mut v, s, 0.0, dt);
+            update_smooth(&mut v, [s, 0.0], s, dt);
         }
         assert_eq!(v.smooth_n, 0, "{v:?}");
-        update_smooth(&mut v, 1.0, 0.0, 0.2);
+        update_smooth(&mut v, [1.0, 0.0], 1.0, 0.2);
         assert_eq!(v.smooth_n, 1, "{v:?}");
         assert!(
             (v.smooth + 1.0).abs() < 1e-6,

@@ -182,9 +182,19 @@ pub struct Vehicle {
     pub smooth: f32,
     /// Pairs of changes that have fed `smooth`.
     pub smooth_n: u32,
-    /// The last epoch's velocity (north, east), its change since the one before and
-    /// that interval (s): the chain `smooth` is fed from (all 0 when broken).
-    pub smooth_last: [f32; 5],
+    /// The last epoch of the chain `smooth` is fed from; `None` when it is broken.
+    pub smooth_last: Option<SmoothLink>,
+}
+
+/// One epoch of the chain [`Vehicle::smooth`] is fed from: its velocity (north, east;
+/// m/s) and, once the chain has two epochs, that velocity's change since the epoch
+/// before and the interval (s) it spans.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SmoothLink {
+    /// The epoch's velocity, north and east (m/s).
+    pub v: [f32; 2],
+    /// Its change since the chain's previous epoch (m/s) and that interval (s).
+    pub change: Option<([f32; 2], f32)>,
 }
 
 impl Vehicle {
@@ -203,7 +213,7 @@ impl Vehicle {
         acc_ratio_n: 0,
         smooth: f32::NAN,
         smooth_n: 0,
-        smooth_last: [0.0; 5],
+        smooth_last: None,
     };
 
     /// Whether the receiver holds static but passes raw velocity through
